@@ -1,0 +1,117 @@
+"""`Motion`: one clip of body poses on the canonical skeleton, with save/load to `.npz`."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from motion_env.skeleton import FPS, NUM_JOINTS
+
+
+@dataclass
+class Motion:
+    """A motion clip: world joint positions of the canonical 22-joint skeleton.
+
+    Attributes:
+        joints: (T, 22, 3) float32 world positions in metres, Y up, floor at y = 0.
+        fps: frames per second (20 for everything the project produces).
+        text: the caption, when there is one.
+        waypoints: (K, 2) or (K, 3) waypoints the motion was asked to follow, if any.
+        meta: free-form string metadata (source file, labels, seed, ...).
+    """
+
+    joints: np.ndarray
+    fps: float = FPS
+    text: str | None = None
+    waypoints: np.ndarray | None = None
+    meta: dict[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        joints = np.asarray(self.joints, dtype=np.float32)
+        if joints.ndim != 3 or joints.shape[1:] != (NUM_JOINTS, 3) or joints.shape[0] < 1:
+            raise ValueError(
+                f"Motion.joints must have shape (T, {NUM_JOINTS}, 3) with T >= 1, "
+                f"got {tuple(joints.shape)}"
+            )
+        if not np.isfinite(joints).all():
+            bad = np.unique(np.nonzero(~np.isfinite(joints))[0])
+            raise ValueError(f"Motion.joints has NaN or infinite values at frames {bad[:10].tolist()}")
+        if not (np.isfinite(self.fps) and self.fps > 0):
+            raise ValueError(f"Motion.fps must be a positive number, got {self.fps!r}")
+        self.joints = joints
+        self.fps = float(self.fps)
+        if self.waypoints is not None:
+            wp = np.asarray(self.waypoints, dtype=np.float32)
+            if wp.ndim != 2 or wp.shape[1] not in (2, 3):
+                raise ValueError(f"Motion.waypoints must have shape (K, 2) or (K, 3), got {wp.shape}")
+            self.waypoints = wp
+        self.meta = {str(k): str(v) for k, v in self.meta.items()}
+
+    @property
+    def num_frames(self) -> int:
+        return int(self.joints.shape[0])
+
+    @property
+    def duration(self) -> float:
+        """Length in seconds."""
+        return self.num_frames / self.fps
+
+    @property
+    def root(self) -> np.ndarray:
+        """(T, 3) pelvis positions."""
+        return self.joints[:, 0]
+
+    def save(self, path: str | Path) -> Path:
+        """Write the clip to an `.npz` file (the suffix is added when missing)."""
+        path = Path(path)
+        if path.suffix != ".npz":
+            path = path.with_suffix(path.suffix + ".npz") if path.suffix else path.with_suffix(".npz")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        arrays = {"joints": self.joints, "fps": np.float32(self.fps)}
+        if self.text is not None:
+            arrays["text"] = np.array(self.text)
+        if self.waypoints is not None:
+            arrays["waypoints"] = self.waypoints
+        arrays["meta"] = np.array(json.dumps(self.meta))
+        np.savez(path, **arrays)
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> Motion:
+        """Read a clip written by :meth:`save` (or any `.npz` with a (T, 22, 3) `joints`)."""
+        path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(f"no motion file at {path}")
+        try:
+            data = np.load(path, allow_pickle=False)
+        except Exception as exc:  # np.load raises several types for a corrupt file
+            raise ValueError(f"{path}: not a readable .npz file ({exc})") from exc
+        with data:
+            if "joints" not in data:
+                raise ValueError(f"{path}: no 'joints' array (keys: {sorted(data.keys())})")
+            try:
+                return cls(
+                    joints=data["joints"],
+                    fps=float(data["fps"]) if "fps" in data else FPS,
+                    text=str(data["text"]) if "text" in data else None,
+                    waypoints=data["waypoints"] if "waypoints" in data else None,
+                    meta=json.loads(str(data["meta"])) if "meta" in data else {},
+                )
+            except ValueError as exc:
+                raise ValueError(f"{path}: {exc}") from exc
+
+
+def load_motion(path: str | Path) -> Motion:
+    """Load a `.npz` written by :meth:`Motion.save`, or any `.bvh` / `.bvh.gz` file."""
+    path = Path(path)
+    name = path.name.lower()
+    if name.endswith((".bvh", ".bvh.gz")):
+        from motion_env.bvh import load_bvh
+
+        return load_bvh(path)
+    if name.endswith(".npz"):
+        return Motion.load(path)
+    raise ValueError(f"{path}: unknown motion file type (expected .npz, .bvh or .bvh.gz)")

@@ -1,0 +1,1 @@
+"""Pure motion math on the canonical skeleton (being written: see issue 2)."""
