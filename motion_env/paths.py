@@ -1,0 +1,216 @@
+"""Root paths and waypoints: the path half of the generator, shared by training, the generator and the env.
+
+A *root path* is a ``(T, 3)`` float32 array of the pelvis ground position and heading per frame:
+``x, z`` in world metres and the yaw ``theta`` (radians, the :mod:`motion_env.motion` convention:
+facing direction ``(sin theta, cos theta)`` in ``(x, z)``, ``theta = 0`` faces +Z). Headings in a
+root path are unwrapped (continuous across +-pi) so that differences along the path are turns.
+
+*Waypoints* are ``(K, 2)`` or ``(K, 3)``: world ``x, z`` and optionally the frame index (20 fps) at
+which the pelvis should pass; :func:`validate_waypoints` turns either into ``(K, 3)`` with NaN for
+untimed rows.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+
+from motion_env.motion import heading_from_joints, to_heading_frame
+from motion_env.skeleton import FPS, NUM_JOINTS
+
+# Per-token path features (see token_path_features): velocity (lateral, forward) and turn rate over
+# the token, then the same over the next second.
+D_PATH = 6
+# Gaussian sigma (frames) that takes the step-by-step sway (hips and shoulders twist with each
+# stride) out of the heading of a root path while keeping turns sharp.
+HEADING_SMOOTH_SIGMA = 5.0
+# The long horizon of the path features: one second ahead.
+LOOKAHEAD_FRAMES = FPS
+
+__all__ = [
+    "D_PATH",
+    "HEADING_SMOOTH_SIGMA",
+    "LOOKAHEAD_FRAMES",
+    "relative_waypoints",
+    "root_path_from_joints",
+    "token_path_features",
+    "validate_root_path",
+    "validate_waypoints",
+    "waypoint_errors",
+    "wrap_angle",
+]
+
+
+def wrap_angle(angle: np.ndarray) -> np.ndarray:
+    """Wrap angles (any shape) into [-pi, pi)."""
+    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def root_path_from_joints(joints: np.ndarray, smooth_sigma: float = HEADING_SMOOTH_SIGMA) -> np.ndarray:
+    """The root path of a motion.
+
+    Args:
+        joints: (T, 22, 3) world joint positions.
+        smooth_sigma: Gaussian sigma (frames) applied to the unwrapped heading; 0 keeps the raw
+            per-frame facing.
+
+    Returns:
+        (T, 3) float32: pelvis x, z and the unwrapped, smoothed heading from the hips and
+        shoulders (:func:`motion_env.motion.heading_from_joints`).
+    """
+    joints = np.asarray(joints, dtype=np.float32)
+    if joints.ndim != 3 or joints.shape[1:] != (NUM_JOINTS, 3) or joints.shape[0] < 1:
+        raise ValueError(f"joints must have shape (T, {NUM_JOINTS}, 3) with T >= 1, got {joints.shape}")
+    theta = np.unwrap(np.asarray(heading_from_joints(joints), dtype=np.float64))
+    if smooth_sigma > 0:
+        theta = gaussian_filter1d(theta, smooth_sigma, mode="nearest")
+    return np.stack([joints[:, 0, 0], joints[:, 0, 2], theta.astype(np.float32)], axis=-1)
+
+
+def validate_root_path(root_path: np.ndarray, name: str = "root_path") -> np.ndarray:
+    """Check a root path and return it as (T, 3) float32 (raises ValueError naming the problem)."""
+    path = np.asarray(root_path, dtype=np.float32)
+    if path.ndim != 2 or path.shape[1] != 3 or path.shape[0] < 1:
+        raise ValueError(f"{name} must have shape (T, 3) (x, z, heading) with T >= 1, got {path.shape}")
+    if not np.isfinite(path).all():
+        bad = np.unique(np.nonzero(~np.isfinite(path))[0])
+        raise ValueError(f"{name} has NaN or infinite values at frames {bad[:10].tolist()}")
+    return path
+
+
+def validate_waypoints(waypoints: np.ndarray | list) -> np.ndarray:
+    """Check waypoints and return them as (K, 3) float32 with a NaN time for untimed ones.
+
+    Args:
+        waypoints: (K, 2) world x, z or (K, 3) x, z, frame index; a time may be NaN (untimed) in
+            a (K, 3) array, so timed and untimed waypoints can be mixed.
+
+    Raises:
+        ValueError: empty or wrongly shaped input, NaN/infinite coordinates, infinite or negative
+            times, or timed waypoints whose times do not strictly increase.
+    """
+    try:
+        wp = np.array(waypoints, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"waypoints must be a numeric (K, 2) or (K, 3) array: {exc}") from exc
+    if wp.size == 0:
+        raise ValueError("waypoints is empty: give at least one waypoint, or None for no path")
+    if wp.ndim != 2 or wp.shape[1] not in (2, 3):
+        hint = " (one waypoint: use [[x, z]] or [[x, z, t]])" if wp.ndim == 1 else ""
+        raise ValueError(f"waypoints must have shape (K, 2) or (K, 3), got {wp.shape}{hint}")
+    if not np.isfinite(wp[:, :2]).all():
+        bad = np.unique(np.nonzero(~np.isfinite(wp[:, :2]))[0])
+        raise ValueError(f"waypoints have NaN or infinite x/z at rows {bad[:10].tolist()}")
+    if wp.shape[1] == 2:
+        wp = np.concatenate([wp, np.full((wp.shape[0], 1), np.nan)], axis=1)
+    times = wp[:, 2]
+    timed = ~np.isnan(times)
+    if np.isinf(times).any():
+        raise ValueError(f"waypoint times must be finite frame indices, got {times[np.isinf(times)][:5]}")
+    if (times[timed] < 0).any():
+        rows = np.nonzero(timed & (times < 0))[0]
+        raise ValueError(
+            f"waypoint times must be >= 0 (frame indices), rows {rows[:10].tolist()} are negative"
+        )
+    t = times[timed]
+    if t.size > 1 and not (np.diff(t) > 0).all():
+        i = int(np.nonzero(np.diff(t) <= 0)[0][0])
+        rows = np.nonzero(timed)[0]
+        raise ValueError(
+            f"timed waypoints must have strictly increasing times: row {rows[i + 1]} (t={t[i + 1]:g}) "
+            f"does not come after row {rows[i]} (t={t[i]:g})"
+        )
+    return wp.astype(np.float32)
+
+
+def _average_motion(path: np.ndarray, starts: np.ndarray, horizon: int) -> np.ndarray:
+    """Mean velocity (lateral, forward; m/s) and turn rate (rad/s) from each start over `horizon` frames.
+
+    The horizon is clamped at the end of the path; the average is over the frames actually
+    available (zero at the last frame), so a clamped window still describes the speed.
+    """
+    n = path.shape[0]
+    ends = np.minimum(starts + horizon, n - 1)
+    frames = np.maximum(ends - starts, 1).astype(np.float64)[:, None]
+    disp = path[ends, :2] - path[starts, :2]  # (N, 2) world
+    local = to_heading_frame(disp, path[starts, 2])  # (N, 2) lateral, forward
+    turn = (path[ends, 2] - path[starts, 2])[:, None]  # (N, 1), path heading is unwrapped
+    return np.concatenate([local, turn], axis=1) / frames * FPS
+
+
+def token_path_features(root_path: np.ndarray, rate: int) -> np.ndarray:
+    """Per-token path features that tell the body GPT how the root moves next.
+
+    For the token starting at frame ``f = k * rate``, in the heading frame at ``f``: the mean
+    velocity (lateral, forward; m/s) and turn rate (rad/s) from ``f`` to ``f + rate``, then the same
+    from ``f`` to ``f + 20`` (one second ahead). Windows are clamped at the end of the path.
+    Velocities in m/s and turn rates in rad/s keep the values O(1) (a walk is ~1.3 m/s).
+
+    Args:
+        root_path: (T, 3) x, z, heading (wrapped or unwrapped).
+        rate: frames per token (the VQ-VAE's temporal downsampling).
+
+    Returns:
+        (ceil(T / rate), D_PATH) float32.
+    """
+    path = validate_root_path(root_path).astype(np.float64)
+    if int(rate) != rate or rate < 1:
+        raise ValueError(f"rate must be a positive integer (frames per token), got {rate!r}")
+    rate = int(rate)
+    path[:, 2] = np.unwrap(path[:, 2])
+    starts = np.arange(0, path.shape[0], rate)
+    short = _average_motion(path, starts, rate)
+    long = _average_motion(path, starts, LOOKAHEAD_FRAMES)
+    return np.concatenate([short, long], axis=1).astype(np.float32)
+
+
+def relative_waypoints(position: np.ndarray, heading: np.ndarray, waypoints_xz: np.ndarray) -> np.ndarray:
+    """Waypoints seen from the character: offsets in its heading frame.
+
+    Args:
+        position: (..., 2) the character's x, z.
+        heading: (...,) its heading.
+        waypoints_xz: (..., K, 2) world x, z of the waypoints.
+
+    Returns:
+        (..., K, 2) float32 (lateral, + = the character's left; forward) offsets in metres.
+    """
+    position = np.asarray(position, dtype=np.float64)
+    offsets = np.asarray(waypoints_xz, dtype=np.float64) - position[..., None, :]
+    theta = np.broadcast_to(np.asarray(heading, dtype=np.float64)[..., None], offsets.shape[:-1])
+    return np.asarray(to_heading_frame(offsets, theta), dtype=np.float32)
+
+
+def waypoint_errors(root_xz: np.ndarray, waypoints: np.ndarray | list) -> np.ndarray:
+    """Distance (metres, XZ) between the pelvis and each waypoint.
+
+    Timed waypoints are measured at their frame (PRODUCT.md's root error; a time past the end of
+    the motion is measured at the last frame, a fractional one at the nearest frame); untimed ones
+    at the closest approach after the previous waypoint's frame of passage.
+
+    Args:
+        root_xz: (T, 2) pelvis x, z per frame (or a (T, 3) root path).
+        waypoints: (K, 2) or (K, 3) as accepted by :func:`validate_waypoints`.
+
+    Returns:
+        (K,) float32 distances.
+    """
+    xz = np.asarray(root_xz, dtype=np.float64)
+    if xz.ndim != 2 or xz.shape[1] not in (2, 3) or xz.shape[0] < 1:
+        raise ValueError(f"root_xz must have shape (T, 2) or (T, 3), got {xz.shape}")
+    xz = xz[:, :2]
+    wp = validate_waypoints(waypoints).astype(np.float64)
+    last = xz.shape[0] - 1
+    errors = np.empty(len(wp))
+    after = 0  # frame of passage of the previous waypoint: untimed ones are searched from there
+    for k, (x, z, t) in enumerate(wp):
+        if np.isnan(t):
+            dist = np.linalg.norm(xz[after:] - (x, z), axis=1)
+            i = int(np.argmin(dist))
+            errors[k] = dist[i]
+            after += i
+        else:
+            f = min(int(np.rint(t)), last)
+            errors[k] = np.linalg.norm(xz[f] - (x, z))
+            after = f
+    return errors.astype(np.float32)

@@ -1,0 +1,507 @@
+"""Training of the path controller on the root paths of real clips, closed loop.
+
+Each sample is a window of a real clip: the controller starts at the clip's root at the window's
+first frame and rolls out through differentiable integration, frame by frame, with the waypoint
+features recomputed from its *predicted* position (so it learns to correct its own drift). The
+waypoints are the clip's own future root positions: timed at random spacing (1-3 s), untimed,
+mixed, dense, a single far one, or none at all (then it must follow the caption's natural motion).
+Losses: position (weighted up at waypoint frames), local velocity, turn rate (zero-turn target on
+still frames), heading, and turn smoothness.
+
+Batches are drawn from ``numpy.random.default_rng([seed, step])``, so a resumed run sees exactly
+the batches an uninterrupted one would.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from motion_env.controller import ControllerConfig, PathController, to_heading_frame_torch
+from motion_env.paths import root_path_from_joints, waypoint_errors
+from motion_env.skeleton import FPS
+
+CHECKPOINT_KIND = "controller"
+# A frame is "still" below this root speed (m/s): its turn target is zero (no spin on the spot).
+STILL_SPEED = 0.25
+# Waypoint sampling modes and their probabilities.
+MODES: dict[str, float] = {
+    "timed": 0.40,
+    "untimed": 0.15,
+    "mixed": 0.10,
+    "dense": 0.10,
+    "single": 0.10,
+    "none": 0.15,
+}
+
+
+@dataclass
+class PathData:
+    """Root paths of clips with their caption embeddings.
+
+    Attributes:
+        paths: per clip, (T_i, 3) float32 root paths.
+        captions: per clip, int indices into `embeddings` (its captions).
+        embeddings: (N, text_dim) float32 caption embeddings.
+        names: clip names.
+    """
+
+    paths: list[np.ndarray]
+    captions: list[np.ndarray]
+    embeddings: np.ndarray
+    names: list[str] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        if len(self.paths) != len(self.captions) or not self.paths:
+            raise ValueError(f"PathData needs >= 1 clip and one caption list per clip, got {len(self.paths)}")
+        for i, c in enumerate(self.captions):
+            if len(c) == 0:
+                raise ValueError(f"clip {self.names[i] if self.names else i} has no caption")
+
+
+def path_data_from_clips(
+    clips: Sequence[Any], encode: Callable[[list[str]], Any], min_frames: int = 24
+) -> PathData:
+    """Root paths and caption embeddings of dataset clips.
+
+    Args:
+        clips: objects with ``name``, ``joints`` (T, 22, 3) and ``captions`` (list[str]).
+        encode: list of captions -> (N, text_dim) embeddings (a text encoder's ``encode``).
+        min_frames: shorter clips are skipped.
+    """
+    kept = [c for c in clips if len(c.joints) >= min_frames and len(c.captions) > 0]
+    if not kept:
+        raise ValueError(f"no clip has >= {min_frames} frames and a caption")
+    texts = sorted({t for c in kept for t in c.captions})
+    index = {t: i for i, t in enumerate(texts)}
+    emb = [np.asarray(encode(texts[i : i + 256]), dtype=np.float32) for i in range(0, len(texts), 256)]
+    return PathData(
+        paths=[root_path_from_joints(c.joints) for c in kept],
+        captions=[np.array([index[t] for t in c.captions]) for c in kept],
+        embeddings=np.concatenate(emb),
+        names=[c.name for c in kept],
+    )
+
+
+@dataclass
+class Batch:
+    """A training batch of B windows of W frames (frame 0 = the start state)."""
+
+    text: torch.Tensor  # (B, text_dim)
+    start: torch.Tensor  # (B, 3)
+    target: torch.Tensor  # (B, W, 3) real root path
+    mask: torch.Tensor  # (B, W) frames that count
+    waypoints: list[np.ndarray | None]  # per sample, (K, 3); times relative to the window start
+    wp_weight: torch.Tensor  # (B, W) extra position weight at timed waypoint frames
+    free: torch.Tensor  # (B,) True when the sample has no waypoints
+
+
+def _sample_waypoints(
+    path: np.ndarray, start: int, window: int, mode: str, rng: np.random.Generator
+) -> tuple[np.ndarray | None, np.ndarray]:
+    """Waypoints from a clip's own future root positions.
+
+    Returns:
+        (waypoints (K, 3) with times relative to `start` (NaN where untimed) or None for mode
+        "none", the frames (K,) relative to `start` the waypoints were taken from).
+    """
+    n = path.shape[0] - start  # frames available from the window start
+    if mode == "none" or n < 2:
+        return None, np.zeros(0, np.int64)
+    if mode == "dense":
+        every = int(rng.choice([1, 2, 4]))
+        frames = np.arange(every, n, every)
+    elif mode == "single":
+        frames = np.array([int(rng.integers(min(20, n - 1), n))])
+    else:  # 1-3 s apart
+        frames = [int(rng.integers(20, 61))]
+        while frames[-1] + 20 < n:
+            frames.append(frames[-1] + int(rng.integers(20, 61)))
+        frames = np.array([f for f in frames if f < n] or [n - 1])
+    frames = frames[: max(1, int(np.searchsorted(frames, window + 80)))]  # enough to see past the window
+    wp = np.concatenate([path[start + frames, :2], frames[:, None].astype(np.float32)], axis=1)
+    if mode == "untimed":
+        wp[:, 2] = np.nan
+    elif mode == "mixed":
+        wp[rng.random(len(wp)) < 0.5, 2] = np.nan
+    return wp.astype(np.float32), frames.astype(np.int64)
+
+
+def sample_batch(data: PathData, rng: np.random.Generator, batch_size: int, window: int) -> Batch:
+    """Draw B windows with their waypoints (see the module docstring)."""
+    lengths = np.array([len(p) for p in data.paths], dtype=np.float64)
+    probs = lengths / lengths.sum()
+    names, weights = list(MODES), np.array(list(MODES.values()))
+    text, start, target, mask, wps, wpw, free = [], [], [], [], [], [], []
+    for _ in range(batch_size):
+        clip = int(rng.choice(len(data.paths), p=probs))
+        path = data.paths[clip]
+        s = int(rng.integers(0, max(1, len(path) - window) + 1))
+        seg = path[s : s + window]
+        m = np.zeros(window, np.float32)
+        m[: len(seg)] = 1.0
+        seg = np.concatenate([seg, np.repeat(seg[-1:], window - len(seg), 0)])
+        mode = str(rng.choice(names, p=weights / weights.sum()))
+        wp, frames = _sample_waypoints(path, s, window, mode, rng)
+        if wp is not None and frames[-1] < window - 1:
+            m[frames[-1] + 1 :] = 0.0  # after the final waypoint the arrive gating holds the character
+        w = np.zeros(window, np.float32)
+        if wp is not None:
+            timed = frames[~np.isnan(wp[:, 2])]
+            w[timed[timed < window]] = 1.0 if mode != "dense" else 0.1
+        text.append(data.embeddings[int(rng.choice(data.captions[clip]))])
+        start.append(seg[0])
+        target.append(seg)
+        mask.append(m)
+        wps.append(wp)
+        wpw.append(w)
+        free.append(wp is None)
+    return Batch(
+        text=torch.from_numpy(np.stack(text)),
+        start=torch.from_numpy(np.stack(start)),
+        target=torch.from_numpy(np.stack(target)),
+        mask=torch.from_numpy(np.stack(mask)),
+        waypoints=wps,
+        wp_weight=torch.from_numpy(np.stack(wpw)),
+        free=torch.tensor(free),
+    )
+
+
+def _local_motion(roots: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """(B, W, 3) root paths -> per-step local velocity (B, W-1, 2) in m/s and turn rate (B, W-1) rad/s."""
+    theta_mid = 0.5 * (roots[:, 1:, 2] + roots[:, :-1, 2])
+    vel = to_heading_frame_torch(roots[:, 1:, :2] - roots[:, :-1, :2], theta_mid) * FPS
+    turn = (roots[:, 1:, 2] - roots[:, :-1, 2]) * FPS
+    return vel, turn
+
+
+def controller_loss(
+    model: PathController, batch: Batch, generator: torch.Generator | None = None
+) -> tuple[torch.Tensor, dict[str, float]]:
+    """Closed-loop rollout of a batch and its loss; returns (loss, named parts)."""
+    dev = model.device
+    state = model.init_state(batch.text.to(dev), batch.waypoints, batch.start.to(dev), generator=generator)
+    window = batch.target.shape[1]
+    roots, _ = model(state, window - 1)  # (B, W, 3)
+    target, mask, wpw = batch.target.to(dev), batch.mask.to(dev), batch.wp_weight.to(dev)
+    free = batch.free.to(dev)[:, None].float()
+    msum = mask[:, 1:].sum().clamp(min=1.0)
+
+    dist = (roots[..., :2] - target[..., :2]).norm(dim=-1)  # (B, W)
+    pos_w = mask * (1.0 - 0.7 * free)  # no route: the exact path is not determined by the caption
+    loss_pos = (dist * pos_w).sum() / msum
+    loss_wp = (dist * wpw * mask).sum() / (wpw * mask).sum().clamp(min=1.0)
+
+    vel_p, turn_p = _local_motion(roots)
+    vel_t, turn_t = _local_motion(target)
+    step_mask = mask[:, 1:]
+    still = vel_t.norm(dim=-1) < STILL_SPEED
+    turn_t = torch.where(still, torch.zeros_like(turn_t), turn_t)
+    loss_vel = ((vel_p - vel_t).abs().sum(-1) * step_mask).sum() / msum
+    loss_turn = ((turn_p - turn_t).abs() * step_mask).sum() / msum
+    head_err = torch.remainder(roots[..., 2] - target[..., 2] + math.pi, 2 * math.pi) - math.pi
+    loss_head = (head_err.abs() * mask).sum() / mask.sum().clamp(min=1.0)
+    loss_smooth = ((turn_p[:, 1:] - turn_p[:, :-1]).abs() * step_mask[:, 1:]).sum() / msum
+
+    loss = loss_pos + 2.0 * loss_wp + 0.5 * loss_vel + 0.3 * loss_turn + 0.5 * loss_head + 0.1 * loss_smooth
+    parts = {
+        "pos": loss_pos.item(),
+        "wp": loss_wp.item(),
+        "vel": loss_vel.item(),
+        "turn": loss_turn.item(),
+        "head": loss_head.item(),
+    }
+    return loss, parts
+
+
+@torch.no_grad()
+def evaluate_controller(
+    model: PathController,
+    data: PathData,
+    num_windows: int = 256,
+    window: int = 160,
+    seed: int = 1234,
+    mode: str = "timed",
+    snap: bool = True,
+) -> dict[str, float]:
+    """Root error of closed-loop rollouts on held-out windows (waypoints from the clips' own future).
+
+    Root error (PRODUCT.md): XZ distance between the pelvis at a timed waypoint's frame and the
+    waypoint, in cm; untimed waypoints are measured at the closest approach. Reported raw and,
+    with `snap`, after :func:`motion_env.recompose.snap_to_waypoints`. Only waypoints inside the
+    window count.
+    """
+    from motion_env.recompose import snap_to_waypoints
+
+    if mode not in MODES or mode == "none":
+        raise ValueError(f"mode must be one of {[m for m in MODES if m != 'none']}, got {mode!r}")
+    rng = np.random.default_rng(seed)
+    lengths = np.array([len(p) for p in data.paths], dtype=np.float64)
+    raw, snapped, clip_max = [], [], []
+    model.eval()
+    for first in range(0, num_windows, 64):
+        b = min(64, num_windows - first)
+        text, starts, wps = [], [], []
+        for _ in range(b):
+            clip = int(rng.choice(len(data.paths), p=lengths / lengths.sum()))
+            path = data.paths[clip]
+            s = int(rng.integers(0, max(1, len(path) - window) + 1))
+            n_valid = min(window, len(path) - s)
+            wp, frames = _sample_waypoints(path, s, window, mode, rng)
+            wps.append(None if wp is None or frames[0] >= n_valid else wp[frames < n_valid])
+            text.append(data.embeddings[int(rng.choice(data.captions[clip]))])
+            starts.append(path[s])
+        paths = model.rollout_batch(torch.from_numpy(np.stack(text)), wps, window, np.stack(starts))
+        for i, wp in enumerate(wps):
+            if wp is None:
+                continue
+            err = waypoint_errors(paths[i], wp)
+            raw.extend(err.tolist())
+            clip_max.append(float(err.max()))
+            if snap:
+                snapped.extend(waypoint_errors(snap_to_waypoints(paths[i], wp), wp).tolist())
+    raw_a = np.array(raw)
+    out = {
+        "root_error_cm": float(raw_a.mean() * 100),
+        "location_error": float((raw_a > 0.5).mean()),
+        "trajectory_error": float((np.array(clip_max) > 0.5).mean()),
+        "num_waypoints": float(len(raw_a)),
+    }
+    if snap:
+        out["root_error_snapped_cm"] = float(np.mean(snapped) * 100)
+    return out
+
+
+@torch.no_grad()
+def evaluate_recompose(
+    model: PathController,
+    clips: Sequence[Any],
+    encode: Callable[[list[str]], Any],
+    num_clips: int = 200,
+    max_frames: int = 160,
+    seed: int = 0,
+) -> dict[str, float]:
+    """Foot skating and root error of real bodies recomposed onto controller paths.
+
+    For each clip (``joints``, ``features``, ``captions``): timed waypoints 1-3 s apart from its
+    own root path, a controller rollout from its first frame, then the real local pose recomposed
+    onto the raw path, onto the snapped path, and the latter with the foot-contact cleanup (contacts
+    from the features). This isolates what the path half does to the feet (the body GPT is not
+    involved). Skating ratios are frame-weighted over the clips.
+    """
+    from motion_env.recompose import (
+        clean_foot_contacts,
+        foot_skating_ratio,
+        local_pose_from_joints,
+        recompose,
+        snap_to_waypoints,
+    )
+
+    rng = np.random.default_rng(seed)
+    order = rng.permutation(len(clips))[:num_clips]
+    sums: dict[str, float] = {}
+    weight, errors, errors_snapped = 0.0, [], []
+    for i in order:
+        clip = clips[int(i)]
+        joints = np.asarray(clip.joints[:max_frames], dtype=np.float32)
+        n = len(joints)
+        if n < 24:
+            continue
+        real = root_path_from_joints(joints)
+        wp, frames = _sample_waypoints(real, 0, n, "timed", rng)
+        wp = wp[frames < n]
+        if len(wp) == 0:
+            continue
+        emb = torch.as_tensor(np.asarray(encode([clip.captions[0]]))[0], dtype=torch.float32)
+        path = model.rollout(emb, wp, n, start=real[0])
+        snapped = snap_to_waypoints(path, wp)
+        local = local_pose_from_joints(joints, real)
+        contacts = np.asarray(clip.features)[:n, -4:]
+        on_raw = recompose(local, path)
+        on_snapped = recompose(local, snapped)
+        variants = {
+            "real": joints,
+            "recomposed": on_raw,
+            "recomposed_snapped": on_snapped,
+            "recomposed_snapped_cleaned": clean_foot_contacts(on_snapped, contacts[: n - 1]),
+        }
+        for name, motion in variants.items():
+            sums[name] = sums.get(name, 0.0) + foot_skating_ratio(motion) * (n - 1)
+        weight += n - 1
+        errors.extend(waypoint_errors(on_raw[:, 0, [0, 2]], wp).tolist())
+        errors_snapped.extend(waypoint_errors(on_snapped[:, 0, [0, 2]], wp).tolist())
+    out = {f"skating_{k}": v / max(weight, 1.0) for k, v in sums.items()}
+    out["root_error_cm"] = float(np.mean(errors) * 100)
+    out["root_error_snapped_cm"] = float(np.mean(errors_snapped) * 100)
+    out["num_waypoints"] = float(len(errors))
+    return out
+
+
+@dataclass
+class TrainSettings:
+    """What a training run was asked to do (stored in the checkpoint)."""
+
+    steps: int = 2000
+    batch_size: int = 64
+    lr: float = 1e-3
+    window: int = 100
+    seed: int = 0
+    warmup: int = 50
+    grad_clip: float = 1.0
+
+
+def _lr_at(step: int, s: TrainSettings) -> float:
+    if step < s.warmup:
+        return s.lr * (step + 1) / s.warmup
+    progress = (step - s.warmup) / max(1, s.steps - s.warmup)
+    return s.lr * (0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * min(1.0, progress))))
+
+
+def fit(
+    model: PathController,
+    data: PathData,
+    settings: TrainSettings,
+    optimizer: torch.optim.Optimizer | None = None,
+    start_step: int = 0,
+    on_step: Callable[[int, dict[str, float]], bool] | None = None,
+    progress: bool = True,
+) -> tuple[torch.optim.Optimizer, int]:
+    """Train `model` from `start_step` to `settings.steps`.
+
+    `on_step(step, parts)` runs after each step (step counts those done) and may return True to
+    stop early. Returns (optimizer, steps done).
+    """
+    if optimizer is None:
+        optimizer = torch.optim.AdamW(model.parameters(), lr=settings.lr, weight_decay=1e-4)
+    dev = model.device
+    bar = tqdm(range(start_step, settings.steps), initial=start_step, total=settings.steps,
+               desc="controller", disable=not progress, mininterval=10.0)  # fmt: skip
+    done = start_step
+    for step in bar:
+        model.train()
+        rng = np.random.default_rng([settings.seed, step])
+        gen = torch.Generator(device=dev).manual_seed(settings.seed * 1_000_003 + step)
+        batch = sample_batch(data, rng, settings.batch_size, settings.window)
+        for group in optimizer.param_groups:
+            group["lr"] = _lr_at(step, settings)
+        loss, parts = controller_loss(model, batch, gen)
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(model.parameters(), settings.grad_clip)
+        optimizer.step()
+        parts["loss"] = loss.item()
+        bar.set_postfix(loss=f"{parts['loss']:.3f}", wp=f"{parts['wp']:.3f}", refresh=False)
+        done = step + 1
+        if on_step is not None and on_step(done, parts):
+            break
+    bar.close()
+    return optimizer, done
+
+
+def load_controller(path: str | Path, device: str | torch.device = "cpu") -> tuple[PathController, dict]:
+    """A trained controller from its checkpoint: (model in eval mode, the checkpoint dict)."""
+    from motion_env.checkpoint import load_checkpoint
+
+    return load_checkpoint(path, CHECKPOINT_KIND, ControllerConfig, PathController, device)
+
+
+def train_controller(
+    data_dir: str | Path,
+    out_path: str | Path,
+    steps: int = 2000,
+    batch_size: int = 64,
+    lr: float = 1e-3,
+    device: str = "cpu",
+    resume: bool = True,
+    window: int = 100,
+    seed: int = 0,
+    config: ControllerConfig | None = None,
+    encoder: str = "minilm",
+    checkpoint_every: int = 50,
+    eval_every: int = 0,
+    eval_windows: int = 256,
+    max_minutes: float | None = None,
+    progress: bool = True,
+) -> dict[str, float]:
+    """Train the path controller on a HumanML3D-layout dataset and checkpoint it.
+
+    Args:
+        data_dir: dataset root (``train.txt``, ``val.txt``, ``new_joints/``, ``texts/``).
+        out_path: checkpoint file; written atomically every `checkpoint_every` steps and at the end.
+        steps, batch_size, lr, window, seed: training settings (window in frames).
+        device: torch device.
+        resume: continue from `out_path` when it exists (same settings, same batches).
+        config: model sizes (default ControllerConfig()).
+        encoder: text encoder name for :func:`motion_env.text.load_text_encoder`.
+        eval_every: evaluate on the val split every N steps (0: only at the end).
+        max_minutes: stop (and checkpoint) after this much wall time.
+
+    Returns:
+        The final val metrics: :func:`evaluate_controller` with timed waypoints (``root_error_cm``
+        raw, ``root_error_snapped_cm`` after snapping, location/trajectory error), the same with
+        untimed waypoints (``untimed_*``, closest approach), and ``step``.
+    """
+    from motion_env.checkpoint import config_from_dict, read_checkpoint, save_checkpoint, text_encoder_record
+    from motion_env.dataset import read_split
+    from motion_env.text import load_text_encoder
+
+    torch.manual_seed(seed)
+    out_path = Path(out_path)
+    settings = TrainSettings(steps=steps, batch_size=batch_size, lr=lr, window=window, seed=seed)
+    text_encoder = load_text_encoder(encoder, device=device)
+    train = path_data_from_clips(read_split(Path(data_dir), "train"), text_encoder.encode)
+    val = path_data_from_clips(read_split(Path(data_dir), "val"), text_encoder.encode)
+    tqdm.write(f"controller: {len(train.paths)} train clips, {len(val.paths)} val clips")
+
+    model = PathController(config or ControllerConfig()).to(device)
+    optimizer = torch.optim.AdamW(model.parameters(), lr=lr, weight_decay=1e-4)
+    start_step, metrics = 0, {}
+    if resume and out_path.is_file():
+        ckpt = read_checkpoint(out_path, CHECKPOINT_KIND)
+        model = PathController(config_from_dict(ControllerConfig, ckpt["config"])).to(device)
+        model.load_state_dict(ckpt["model"])
+        optimizer = torch.optim.AdamW(model.parameters(), lr=lr, weight_decay=1e-4)
+        optimizer.load_state_dict(ckpt["optimizer"])
+        start_step = int(ckpt["step"])
+        tqdm.write(f"controller: resuming {out_path} at step {start_step}")
+    tqdm.write(f"controller: {model.num_parameters() / 1e6:.2f} M parameters")
+
+    def save(step: int) -> None:
+        save_checkpoint(out_path, kind=CHECKPOINT_KIND, config=model.config, model=model,
+                        optimizer=optimizer.state_dict(), step=step, settings=asdict(settings),
+                        text_encoder=text_encoder_record(text_encoder), metrics=metrics)  # fmt: skip
+
+    t0 = time.monotonic()
+    running: dict[str, float] = {}
+
+    def on_step(step: int, parts: dict[str, float]) -> bool:
+        for k, v in parts.items():
+            running[k] = 0.95 * running.get(k, v) + 0.05 * v
+        if step % 25 == 0:
+            tqdm.write(f"step {step} " + " ".join(f"{k}={v:.4f}" for k, v in running.items()))
+        if eval_every and step % eval_every == 0:
+            metrics.update(evaluate_controller(model, val, eval_windows, snap=False))
+            tqdm.write(f"step {step} val " + " ".join(f"{k}={v:.4f}" for k, v in metrics.items()))
+        out_of_time = max_minutes is not None and time.monotonic() - t0 > 60 * max_minutes
+        if step % checkpoint_every == 0 or step == steps or out_of_time:
+            save(step)
+        if out_of_time:
+            tqdm.write(f"controller: time budget reached at step {step}")
+        return out_of_time
+
+    _, step = fit(model, train, settings, optimizer, start_step, on_step, progress)
+    metrics.update(evaluate_controller(model, val, eval_windows))
+    untimed = evaluate_controller(model, val, eval_windows, mode="untimed", snap=False)
+    metrics.update({f"untimed_{k}": v for k, v in untimed.items()})
+    metrics["step"] = float(step)
+    save(step)
+    tqdm.write("controller: final val " + " ".join(f"{k}={v:.4f}" for k, v in metrics.items()))
+    return metrics

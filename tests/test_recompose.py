@@ -1,0 +1,159 @@
+"""Recompose (body on the path), waypoint snapping, foot-contact cleanup and the skating metric."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from motion_env import recompose as rc
+from motion_env.motion import features_to_joints, heading_from_joints
+from motion_env.paths import root_path_from_joints, waypoint_errors, wrap_angle
+from motion_env.skeleton import FOOT_JOINTS
+
+SAMPLE = Path(__file__).resolve().parents[2] / "shared" / "data" / "humanml3d_sample"
+
+
+def _sample() -> tuple[np.ndarray, np.ndarray]:
+    j, f = SAMPLE / "new_joints" / "012314.npy", SAMPLE / "new_joint_vecs" / "012314.npy"
+    if not (j.is_file() and f.is_file()):
+        pytest.skip(f"real HumanML3D sample not found under {SAMPLE}")
+    return np.load(j).astype(np.float32), np.load(f).astype(np.float32)
+
+
+def _curve(num: int) -> np.ndarray:
+    """An S-shaped walk at ~1.2 m/s whose heading wobbles up to 15 degrees off the travel direction."""
+    t = np.arange(num) / 20.0
+    x = 1.5 * np.sin(0.6 * t)
+    z = 1.2 * t
+    travel = np.arctan2(0.9 * np.cos(0.6 * t), 1.2)
+    return np.stack([x, z, travel + np.radians(15) * np.sin(3 * t)], 1).astype(np.float32)
+
+
+def test_recompose_round_trips_real_motion() -> None:
+    joints, features = _sample()
+    path = root_path_from_joints(joints)
+    local = rc.local_pose_from_joints(joints, path)
+    np.testing.assert_allclose(local[:, 0, [0, 2]], 0, atol=1e-6)
+    np.testing.assert_allclose(rc.recompose(local, path, face_travel=False), joints, atol=1e-5)
+    np.testing.assert_allclose(
+        rc.local_pose_from_features(features),
+        rc.local_pose_from_joints(features_to_joints(features)),
+        atol=1e-6,
+    )
+
+
+def test_recompose_puts_the_pelvis_on_the_path_facing_travel() -> None:
+    joints, _ = _sample()
+    # A local pose whose own facing is exactly +Z in every frame (factor out the raw heading).
+    local = rc.local_pose_from_joints(joints, root_path_from_joints(joints, smooth_sigma=0))
+    path = _curve(len(local))
+    out = rc.recompose(local, path)
+    assert out.shape == joints.shape and out.dtype == np.float32
+    np.testing.assert_allclose(out[:, 0, [0, 2]], path[:, :2], atol=1e-5)
+    np.testing.assert_allclose(out[:, :, 1], local[:, :, 1], atol=1e-5)  # heights from the pose
+    vel = np.gradient(path[:, :2], axis=0)
+    travel = np.arctan2(vel[:, 0], vel[:, 1])
+    facing = heading_from_joints(out)
+    assert np.degrees(np.abs(wrap_angle(facing - travel)))[3:-3].max() < 3.0
+    # Without face_travel the body keeps the path's own heading.
+    kept = heading_from_joints(rc.recompose(local, path, face_travel=False))
+    np.testing.assert_allclose(wrap_angle(kept - path[:, 2]), 0, atol=1e-4)
+
+
+def test_align_heading_keeps_side_steps_and_still_frames() -> None:
+    n = 60
+    side = np.stack([np.arange(n) * 0.05, np.zeros(n), np.zeros(n)], 1)  # moving +X while facing +Z
+    np.testing.assert_allclose(rc.align_heading_to_travel(side)[:, 2], 0, atol=1e-6)
+    still = np.stack([np.zeros(n), np.zeros(n), np.full(n, 1.0)], 1)
+    np.testing.assert_allclose(rc.align_heading_to_travel(still)[:, 2], 1.0, atol=1e-6)
+
+
+def test_recompose_errors() -> None:
+    with pytest.raises(ValueError, match="root_path has 10 frames"):
+        rc.recompose(np.zeros((12, 22, 3)), np.zeros((10, 3)))
+    with pytest.raises(ValueError, match="local_pose"):
+        rc.recompose(np.zeros((10, 21, 3)), np.zeros((10, 3)))
+    with pytest.raises(ValueError, match="NaN or infinite"):
+        rc.recompose(np.zeros((2, 22, 3)), np.array([[0, 0, 0], [np.nan, 0, 0]]))
+
+
+def test_snap_hits_timed_and_untimed_waypoints_exactly() -> None:
+    path = _curve(120)
+    wp = np.array(
+        [[0.5, 1.0, 20], [2.0, 3.5, 55], [0.0, 5.0, np.nan], [1.0, 7.0, 110], [9, 9, 400]], np.float32
+    )
+    snapped = rc.snap_to_waypoints(path, wp)
+    frames = rc.waypoint_frames(snapped, wp)
+    assert frames[-1] == -1  # past the end: ignored
+    err = waypoint_errors(snapped, wp[:4])
+    np.testing.assert_allclose(err, 0, atol=1e-5)
+    np.testing.assert_allclose(snapped[0], path[0], atol=1e-6)  # the start stays
+    # Smooth: no step in the path larger than the original steps plus the spread-out residual.
+    assert np.abs(np.diff(snapped[:, :2], axis=0)).max() < 0.2
+    # Deterministic.
+    np.testing.assert_array_equal(rc.snap_to_waypoints(path, wp), snapped)
+
+
+def test_snap_turns_the_heading_with_the_new_direction() -> None:
+    n = 80
+    straight = np.stack([np.zeros(n), np.arange(n) * 0.06, np.zeros(n)], 1)  # forward along +Z
+    snapped = rc.snap_to_waypoints(straight, [[4.8, 4.8, n - 1]])  # pulled to walk diagonally
+    vel = np.gradient(snapped[:, :2], axis=0)
+    travel = np.arctan2(vel[:, 0], vel[:, 1])
+    mid = slice(n // 4, 3 * n // 4)
+    np.testing.assert_allclose(wrap_angle(snapped[mid, 2] - travel[mid]), 0, atol=0.05)
+    dense = np.stack([np.sin(np.arange(n) / 10), np.arange(n) * 0.05, np.arange(n)], 1)
+    np.testing.assert_allclose(rc.snap_to_waypoints(straight, dense)[:, :2], dense[:, :2], atol=1e-5)
+
+
+def test_foot_skating_ratio_definition() -> None:
+    n = 21
+    joints = np.zeros((n, 22, 3), np.float32)
+    joints[:, :, 1] = 1.0
+    assert rc.foot_skating_ratio(joints) == 0.0
+    joints[:, FOOT_JOINTS[1], 1] = 0.02  # a toe on the floor ...
+    assert rc.foot_skating_ratio(joints) == 0.0
+    joints[:, FOOT_JOINTS[1], 0] = np.arange(n) * 0.03  # ... sliding 3 cm per frame
+    assert rc.foot_skating_ratio(joints) == 1.0
+    joints[:, FOOT_JOINTS[1], 0] = np.arange(n) * 0.02  # 2 cm per frame is allowed
+    assert rc.foot_skating_ratio(joints) == 0.0
+    assert rc.foot_skating_ratio(joints[:1]) == 0.0
+
+
+def test_clean_foot_contacts_reduces_skating_and_keeps_the_legs() -> None:
+    joints, features = _sample()
+    # Skating clip: the body glides forward 4 cm per frame on top of its own motion, so every planted
+    # foot slides (what a root path faster than the legs produces).
+    skating = joints.copy()
+    skating[..., 2] += 0.04 * np.arange(len(joints))[:, None]
+    contacts = features[:, -4:] > 0.5
+    before = rc.foot_skating_ratio(skating)
+    cleaned = rc.clean_foot_contacts(skating, contacts)
+    after = rc.foot_skating_ratio(cleaned)
+    assert before > 0.5 and after < 0.5 * before, (before, after)
+    detected = rc.clean_foot_contacts(skating)  # contacts from height + speed
+    assert rc.foot_skating_ratio(detected) < before
+    # Pelvis, spine and arms untouched; thigh and shin lengths kept.
+    untouched = [j for j in range(22) if j not in (4, 5, 7, 8, 10, 11)]
+    np.testing.assert_array_equal(cleaned[:, untouched], skating[:, untouched])
+    for hip, knee, ankle, _ in rc.LEGS:
+        for a, b in ((hip, knee), (knee, ankle)):
+            np.testing.assert_allclose(
+                np.linalg.norm(cleaned[:, a] - cleaned[:, b], axis=-1),
+                np.linalg.norm(skating[:, a] - skating[:, b], axis=-1),
+                atol=1e-5,
+            )
+    with pytest.raises(ValueError, match="contacts must have shape"):
+        rc.clean_foot_contacts(skating, contacts[:, :3])
+
+
+def test_clean_foot_contacts_leaves_free_motion_alone() -> None:
+    joints, _ = _sample()
+    lifted = joints.copy()
+    lifted[..., 1] += 1.0
+    none = np.zeros((len(joints), 4), bool)
+    np.testing.assert_allclose(rc.clean_foot_contacts(lifted, none), lifted, atol=1e-5)
+    assert math.isclose(rc.foot_skating_ratio(lifted), 0.0)
