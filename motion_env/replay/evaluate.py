@@ -1,0 +1,411 @@
+"""Is a motion physically plausible? Checks on its kinematic replay, and the report.
+
+:func:`evaluate` replays a motion on the humanoid (:func:`motion_env.replay.kinematic.measure`)
+and runs nine checks, each a per-frame signal compared with a threshold calibrated on real
+motion capture (``scripts/calibrate_replay.py`` writes ``motion_env/assets/replay_thresholds.json``):
+
+====================  =========================================================================
+penetration           depth of the lowest body point below the floor (m)
+floating              time in the air (nothing within CONTACT_HEIGHT of the floor) that is not a
+                      ballistic flight: the centre of mass does not fall freely (s)
+foot_skating          distance a heel or toe slides while on the floor, within one second (m)
+self_penetration      depth by which two limbs' capsules overlap (m)
+joint_limits          angle by which a joint leaves its human range (degrees)
+speed                 fastest joint speed (m/s)
+acceleration          largest joint acceleration (m/s^2)
+root_force            force on the root that inverse dynamics needs and the floor cannot supply,
+                      per kg, averaged over a quarter second (N/kg)
+root_torque           the same for the torque (N m/kg)
+====================  =========================================================================
+
+A motion is plausible when every check passes. Physical tracking (:mod:`.tracking`) can be
+added to the report but does not decide it.
+"""
+
+from __future__ import annotations
+
+import json
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+from scipy.ndimage import minimum_filter1d
+
+from motion_env.clip import Motion
+from motion_env.motion import resample
+from motion_env.replay.humanoid import BALL_JOINTS, DEFAULT_MASS
+from motion_env.replay.kinematic import CONTACT_HEIGHT, Measurements, measure
+from motion_env.skeleton import FPS, JOINT_NAMES
+
+GRAVITY = 9.81
+CHECKS: tuple[str, ...] = (
+    "penetration",
+    "floating",
+    "foot_skating",
+    "self_penetration",
+    "joint_limits",
+    "speed",
+    "acceleration",
+    "root_force",
+    "root_torque",
+)
+UNITS = {
+    "penetration": "m",
+    "floating": "s",
+    "foot_skating": "m",
+    "self_penetration": "m",
+    "joint_limits": "deg",
+    "speed": "m/s",
+    "acceleration": "m/s^2",
+    "root_force": "N/kg",
+    "root_torque": "N m/kg",
+}
+BALLISTIC_TOLERANCE = 0.03  # m: largest deviation of the centre of mass from a free-fall fit
+MAX_TAKEOFF_SPEED = 4.5  # m/s upward: about a 1 m rise of the centre of mass, beyond any jump
+SKATE_WINDOW = 1.0  # s
+SKATE_CONTACT_BAND = 0.02  # m above the local floor
+RESIDUAL_WINDOW = 0.25  # s
+_SOLE_NAMES = ("left heel slides", "left toes slide", "right heel slides", "right toes slide")
+# How a joint leaves its range, by (joint kind, axis, upper bound?), for the left side and the
+# midline in MuJoCo's frame; right limbs swap the words of the x and z axes.
+_SAGITTAL_WORDS = {
+    "hip": ("swings forwards", "swings backwards"),
+    "knee": ("bends backwards", "bends"),
+    "ankle": ("flexes toes-up", "points toes-down"),
+    "spine": ("bends backwards", "bends forwards"),
+    "neck": ("tips backwards", "tips forwards"),
+    "collar": ("tips backwards", "tips forwards"),
+    "shoulder": ("swings forwards", "swings backwards"),
+    "elbow": ("bends", "bends backwards"),
+}
+
+
+def _limit_words(joint: str, axis: int, upper: bool) -> str:
+    """How joint `joint` leaves its range about MuJoCo axis `axis` (0 x, 1 y, 2 z)."""
+    side, _, kind = joint.partition("_") if joint.startswith(("left_", "right_")) else ("", "", joint)
+    kind = "spine" if kind.startswith("spine") else kind
+    if axis == 1:
+        return _SAGITTAL_WORDS[kind][int(upper)]
+    if side == "right":
+        upper = not upper
+    if not side:
+        return (
+            ("leans to the left", "leans to the right")[int(upper)]
+            if axis == 0
+            else (("twists to the right", "twists to the left")[int(upper)])
+        )
+    if axis == 0:
+        return ("moves across the body", "moves out sideways")[int(upper)]
+    return ("twists inwards", "twists outwards")[int(upper)]
+
+
+def thresholds_path() -> Path:
+    """The shipped calibration file."""
+    return Path(str(resources.files("motion_env").joinpath("assets/replay_thresholds.json")))
+
+
+def load_thresholds(path: str | Path | None = None) -> dict[str, float]:
+    """Thresholds per check from a calibration JSON (default: the shipped one)."""
+    path = thresholds_path() if path is None else Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no replay thresholds at {path} (run scripts/calibrate_replay.py)")
+    data = json.loads(path.read_text())
+    values = data.get("thresholds", data)
+    missing = [c for c in CHECKS if c not in values]
+    if missing:
+        raise ValueError(f"{path}: thresholds missing for {missing}")
+    return {c: float(values[c]) for c in CHECKS}
+
+
+# --------------------------------------------------------------------------------------------
+# Per-frame signals
+# --------------------------------------------------------------------------------------------
+
+
+def _moving_average(x: np.ndarray, width: int) -> np.ndarray:
+    """Centred moving average over `width` frames (fewer at the ends), (T,) -> (T,)."""
+    if width <= 1 or len(x) == 0:
+        return x.copy()
+    kernel = np.ones(width)
+    num = np.convolve(x, kernel, mode="same")
+    den = np.convolve(np.ones_like(x), kernel, mode="same")
+    return num / den
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Inclusive (first, last) frame ranges where `mask` (T,) is true."""
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1).tolist(), (np.flatnonzero(edges == -1) - 1).tolist()))
+
+
+def _is_ballistic(com: np.ndarray, dt: float) -> bool:
+    """Does the centre of mass (n, 3) over an airborne stretch follow a free fall?"""
+    n = len(com)
+    tau = np.arange(n) * dt
+    basis = np.stack([np.ones(n), tau], axis=1)
+    target = com.copy()
+    target[:, 2] += 0.5 * GRAVITY * tau**2  # free fall: z + g t^2 / 2 is linear in t, x and y too
+    coef, *_ = np.linalg.lstsq(basis, target, rcond=None)
+    deviation = np.abs(basis @ coef - target).max() if n > 2 else 0.0
+    return bool(deviation <= BALLISTIC_TOLERANCE and coef[1, 2] <= MAX_TAKEOFF_SPEED)
+
+
+def _floating_signal(m: Measurements) -> np.ndarray:
+    """(T,) length in seconds of the non-ballistic airborne stretch each frame is in (else 0)."""
+    dt = 1.0 / m.fps
+    out = np.zeros(m.num_frames)
+    for a, b in _runs(m.lowest > CONTACT_HEIGHT):
+        if not _is_ballistic(m.com[a : b + 1], dt):
+            out[a : b + 1] = (b - a + 1) * dt
+    return out
+
+
+def _skating_signal(m: Measurements) -> tuple[np.ndarray, np.ndarray]:
+    """(T,) largest distance one sole point slid on the floor within SKATE_WINDOW around each
+    frame, and (T,) which sole point (index into _SOLE_NAMES).
+
+    A heel or toe is on the floor when it is within CONTACT_HEIGHT of the floor and within
+    SKATE_CONTACT_BAND of the lowest body point of the surrounding second (which follows a floor
+    that a mocap take sees tilted). A frame counts the smaller of the point's two steps around
+    it, so a foot that lands or takes off fast between two frames, a frame away from the floor,
+    adds little; a foot that keeps sliding adds all of it.
+    """
+    n = m.num_frames
+    if n < 3:
+        return np.zeros(n), np.zeros(n, dtype=int)
+    width = max(1, round(SKATE_WINDOW * m.fps))
+    floor = minimum_filter1d(m.lowest, size=width, mode="nearest")
+    z = m.soles[..., 2]  # (T, 4)
+    on_floor = (z < CONTACT_HEIGHT) & (z < floor[:, None] + SKATE_CONTACT_BAND)
+    step = np.linalg.norm(np.diff(m.soles[..., :2], axis=0), axis=-1)  # (T-1, 4): t -> t+1
+    slide = np.zeros((n, 4))
+    slide[1:-1] = np.minimum(step[:-1], step[1:]) * (on_floor[:-2] & on_floor[1:-1] & on_floor[2:])
+    windowed = np.stack([np.convolve(slide[:, k], np.ones(width), mode="same") for k in range(4)], axis=1)
+    return windowed.max(axis=1), windowed.argmax(axis=1)
+
+
+def _frame_speeds(m: Measurements) -> tuple[np.ndarray, np.ndarray]:
+    """(T, 22) joint speed around each frame (the faster of the steps in and out) and (T, 22)
+    joint acceleration (second difference; the end frames copy their neighbours)."""
+    n = m.num_frames
+    speed = np.zeros((n, m.joints.shape[1]))
+    accel = np.zeros_like(speed)
+    if n >= 2:
+        step = np.linalg.norm(np.diff(m.joints, axis=0), axis=-1) * m.fps  # (T-1, 22)
+        speed[1:] = step
+        speed[:-1] = np.maximum(speed[:-1], step)
+    if n >= 3:
+        accel[1:-1] = np.linalg.norm(m.joints[2:] - 2 * m.joints[1:-1] + m.joints[:-2], axis=-1) * m.fps**2
+        accel[0], accel[-1] = accel[1], accel[-2]
+    return speed, accel
+
+
+def signals(m: Measurements) -> dict[str, np.ndarray]:
+    """Per-frame signal (T,) of every check, in the units of :data:`UNITS`; a check fails on the
+    frames where its signal exceeds the threshold, and its value is the signal's maximum."""
+    speed, accel = _frame_speeds(m)
+    width = max(1, round(RESIDUAL_WINDOW * m.fps))
+    return {
+        "penetration": np.maximum(-m.lowest, 0.0),
+        "floating": _floating_signal(m),
+        "foot_skating": _skating_signal(m)[0],
+        "self_penetration": m.self_depth,
+        "joint_limits": np.rad2deg(m.limit_excess.max(axis=1)),
+        "speed": speed.max(axis=1),
+        "acceleration": accel.max(axis=1),
+        "root_force": _moving_average(m.residual_force, width),
+        "root_torque": _moving_average(m.residual_torque, width),
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# Report
+# --------------------------------------------------------------------------------------------
+
+
+def _span(ranges: list[tuple[int, int]], fps: float, limit: int = 4) -> str:
+    def one(a: int, b: int) -> str:
+        if a == b:
+            return f"frame {a} ({a / fps:.2f} s)"
+        return f"frames {a}-{b} ({a / fps:.2f}-{(b + 1) / fps:.2f} s)"
+
+    text = ", ".join(one(a, b) for a, b in ranges[:limit])
+    return text + (f" and {len(ranges) - limit} more stretches" if len(ranges) > limit else "")
+
+
+def _part(geom: str) -> str:
+    """A geom's name in words: 'left_sole0' -> 'left foot'."""
+    return geom.replace("sole0", "foot").replace("sole1", "foot").replace("_", " ")
+
+
+def _message(name: str, m: Measurements, sig: np.ndarray, threshold: float, ranges: list) -> str:
+    """One sentence saying what a check found, in plain words."""
+    worst = int(np.argmax(sig))
+    value = float(sig[worst])
+    where = _span(ranges, m.fps) if ranges else f"worst at frame {worst}"
+    ok = not ranges
+    if name == "penetration":
+        if value == 0.0:
+            return "nothing goes below the floor"
+        what = f"the {_part(m.lowest_geom[worst])} sinks {100 * value:.1f} cm into the floor"
+        allowed = f"{100 * threshold:.1f} cm"
+    elif name == "floating":
+        if value == 0.0:
+            return "the body always touches the floor, or is in a ballistic flight"
+        what = f"the body stays {value:.2f} s in the air without falling like a thrown body"
+        allowed = f"{threshold:.2f} s"
+    elif name == "foot_skating":
+        if value == 0.0:
+            return "no foot slides on the floor"
+        point = _SOLE_NAMES[int(_skating_signal(m)[1][worst])]
+        what = f"the {point} {100 * value:.0f} cm along the floor within {SKATE_WINDOW:g} s"
+        allowed = f"{100 * threshold:.0f} cm"
+    elif name == "self_penetration":
+        if value == 0.0:
+            return "no two limbs pass through each other"
+        a, b = (_part(s) for s in m.self_pair[worst])
+        what = f"the {a} and the {b} overlap by {100 * value:.1f} cm"
+        allowed = f"{100 * threshold:.1f} cm"
+    elif name == "joint_limits":
+        if value == 0.0:
+            return "every joint stays within a human range"
+        k = int(np.argmax(m.limit_excess[worst]))
+        axis = int(m.limit_axis[worst, k])
+        joint = JOINT_NAMES[BALL_JOINTS[k]]
+        words = _limit_words(joint, axis // 2, bool(axis % 2))
+        what = f"the {joint.replace('_', ' ')} {words} {value:.0f} degrees beyond a human range"
+        allowed = f"{threshold:.0f} degrees"
+    elif name in ("speed", "acceleration"):
+        speed, accel = _frame_speeds(m)
+        table = speed if name == "speed" else accel
+        joint = JOINT_NAMES[int(np.argmax(table[worst]))].replace("_", " ")
+        unit = "m/s" if name == "speed" else "m/s^2"
+        verb = "moves at" if name == "speed" else "accelerates at"
+        what = f"the {joint} {verb} {value:.1f} {unit}"
+        allowed = f"{threshold:.1f} {unit}"
+    else:
+        kind = "force" if name == "root_force" else "torque"
+        unit = "N/kg" if name == "root_force" else "N m/kg"
+        what = f"the body needs an external {kind} of {value:.1f} {unit} that the floor cannot give"
+        allowed = f"{threshold:.1f} {unit}"
+    if ok:
+        return f"fine: at worst (frame {worst}) {what}; allowed {allowed}"
+    return f"{what} (allowed {allowed}) at {where}"
+
+
+def report(m: Measurements, thresholds: dict[str, float]) -> dict:
+    """The plausibility report (a JSON-serialisable dict) of measured motion `m`."""
+    sig = signals(m)
+    checks = {}
+    for name in CHECKS:
+        s = sig[name]
+        threshold = float(thresholds[name])
+        ranges = _runs(s > threshold)
+        checks[name] = {
+            "value": float(s.max()) if len(s) else 0.0,
+            "threshold": threshold,
+            "unit": UNITS[name],
+            "passed": not ranges,
+            "frames": [[a, b] for a, b in ranges],
+            "worst_frame": int(np.argmax(s)) if len(s) else 0,
+            "message": _message(name, m, s, threshold, ranges),
+        }
+    failed = [n for n in CHECKS if not checks[n]["passed"]]
+    err = m.fit_error
+    worst_joint = int(np.argmax(err.max(axis=0)))
+    return {
+        "plausible": not failed,
+        "summary": (
+            "plausible: every check passed"
+            if not failed
+            else "not plausible: " + "; ".join(checks[n]["message"] for n in failed)
+        ),
+        "failed": failed,
+        "frames": m.num_frames,
+        "fps": m.fps,
+        "duration_s": m.num_frames / m.fps,
+        "mass_kg": m.mass,
+        "fit_error": {
+            "mean_cm": float(100 * err.mean()),
+            "max_cm": float(100 * err.max()),
+            "worst_joint": JOINT_NAMES[worst_joint],
+        },
+        "checks": checks,
+        "tracking": None,
+    }
+
+
+def evaluate_detailed(
+    motion: Motion,
+    mass: float = DEFAULT_MASS,
+    thresholds: dict[str, float] | str | Path | None = None,
+    track: bool = False,
+) -> tuple[Measurements, dict]:
+    """:func:`evaluate`, also returning the per-frame measurements (e.g. for a video).
+
+    The thresholds are calibrated at 20 fps, where finite-difference speeds and accelerations
+    mean the same as in the calibration; a motion at another rate is resampled to 20 fps first
+    (the report then says so, and its frames count at 20 fps).
+    """
+    if not isinstance(motion, Motion):
+        raise TypeError(f"evaluate expects a motion_env.Motion, got {type(motion).__name__}")
+    if not isinstance(thresholds, dict):
+        thresholds = load_thresholds(thresholds)
+    source_fps = motion.fps
+    if abs(motion.fps - FPS) > 1e-6:
+        joints = resample(motion.joints, motion.fps, FPS)
+        motion = Motion(joints=joints, fps=FPS, text=motion.text, meta=motion.meta)
+    m = measure(motion, mass)
+    out = report(m, thresholds)
+    if source_fps != motion.fps:
+        out["resampled_from_fps"] = source_fps
+    if track:
+        from motion_env.replay.tracking import track as run_tracking
+
+        out["tracking"] = run_tracking(motion, mass=mass, measurements=m)
+    return m, out
+
+
+def evaluate(
+    motion: Motion,
+    mass: float = DEFAULT_MASS,
+    thresholds: dict[str, float] | str | Path | None = None,
+    track: bool = False,
+) -> dict:
+    """Replay `motion` on a MuJoCo humanoid of `mass` kg and report what is physically wrong.
+
+    Returns a JSON-serialisable dict: ``plausible`` (bool), ``summary`` (one line),
+    ``failed`` (check names), ``fit_error`` (how far the humanoid's joints are from the
+    motion's, cm), ``checks`` (per check: ``value``, ``threshold``, ``unit``, ``passed``,
+    ``frames`` as inclusive [first, last] ranges, ``worst_frame``, ``message``) and
+    ``tracking`` (None, or the result of :func:`motion_env.replay.tracking.track` when `track`).
+    thresholds: a dict per check, or a calibration JSON path; default the shipped calibration.
+    """
+    return evaluate_detailed(motion, mass, thresholds, track)[1]
+
+
+def format_report(result: dict, title: str | None = None) -> str:
+    """The report of :func:`evaluate` as readable lines of text."""
+    head = f"{title}: " if title else ""
+    lines = [
+        f"{head}{result['frames']} frames, {result['duration_s']:.2f} s at {result['fps']:g} fps, "
+        f"humanoid of {result['mass_kg']:g} kg"
+        + (
+            f" (resampled from {result['resampled_from_fps']:g} fps)"
+            if "resampled_from_fps" in result
+            else ""
+        ),
+        "verdict: PLAUSIBLE"
+        if result["plausible"]
+        else f"verdict: NOT PLAUSIBLE (failed: {', '.join(result['failed'])})",
+        f"fit: the humanoid's joints are {result['fit_error']['mean_cm']:.1f} cm from the motion's on "
+        f"average (at most {result['fit_error']['max_cm']:.1f} cm, {result['fit_error']['worst_joint']})",
+    ]
+    for name, c in result["checks"].items():
+        mark = "ok  " if c["passed"] else "FAIL"
+        lines.append(f"  [{mark}] {name:<16} {c['message']}")
+    if result.get("tracking"):
+        lines.append(f"tracking (not part of the verdict): {result['tracking']['message']}")
+    if result.get("video"):
+        lines.append(f"video: {result['video']}")
+    return "\n".join(lines)
