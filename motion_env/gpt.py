@@ -1,0 +1,463 @@
+"""Body GPT: a causal transformer that predicts the next motion token from text, path and past tokens.
+
+The sequence for one clip of N tokens has N positions. The input at position i is
+
+    embedding(previous token)     (tok_{i-1}; the learned START slot at i = 0)
+  + path_mlp(path features of token i)   (paths.token_path_features: how the root moves next)
+  + text(caption)                 (projected text embedding, the same at every position)
+  + position(i)
+
+and the output at position i is the distribution of token i. So position 0 is the
+"text-conditioning slot": START carries no token, and text + path decide the first token.
+
+The text is added to every position rather than used only as a prefix: the window slides
+(below), so a prefix would fall out of it, and adding it everywhere lets ``set_text`` act from
+the very next token while the cached past keeps the pose continuous. A learned "null text"
+vector replaces the text for a random 10 % of training clips, which enables classifier-free
+guidance (``guidance`` > 1) at sampling time.
+
+Sliding window: positions are learned for ``block_size`` tokens. When the KV cache is full, it is
+re-primed from the inputs of the newest ``block_size // 2`` tokens, renumbered from position 0,
+and generation continues, so the length is unbounded. Training uses random crops whose first
+input is the real previous token when the crop starts mid-clip, which is exactly what a re-primed
+window looks like. Sampling is multinomial (optionally with temperature and nucleus top-p):
+greedy or top-k decoding collapses to a held pose, as C-T2M reports.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from motion_env.paths import D_PATH
+
+
+@dataclass
+class GPTConfig:
+    """Body GPT hyper-parameters.
+
+    Attributes:
+        vocab_size: number of motion tokens (the VQ-VAE codebook size).
+        block_size: window length in tokens (positions); 32 tokens = 6.4 s at rate 4, longer
+            than most training clips (median 4 s), which keeps CPU training affordable.
+        n_layer, n_head, n_embd: transformer depth, heads and width.
+        dropout: dropout in training.
+        text_dim: width of the text embedding (384 for MiniLM).
+        path_dim: width of the per-token path features (paths.D_PATH).
+    """
+
+    vocab_size: int = 512
+    block_size: int = 32
+    n_layer: int = 4
+    n_head: int = 4
+    n_embd: int = 192
+    dropout: float = 0.1
+    text_dim: int = 384
+    path_dim: int = D_PATH
+
+    def __post_init__(self) -> None:
+        for name in ("vocab_size", "block_size", "n_layer", "n_head", "n_embd", "text_dim", "path_dim"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or value < 1:
+                raise ValueError(f"GPTConfig.{name} must be a positive int, got {value!r}")
+        if self.block_size < 2:
+            raise ValueError(
+                f"GPTConfig.block_size must be >= 2 (the window slides by halves), got {self.block_size}"
+            )
+        if self.n_embd % self.n_head:
+            raise ValueError(f"GPTConfig.n_embd ({self.n_embd}) must be divisible by n_head ({self.n_head})")
+        if not 0.0 <= self.dropout < 1.0:
+            raise ValueError(f"GPTConfig.dropout must be in [0, 1), got {self.dropout!r}")
+
+    @property
+    def start_token(self) -> int:
+        """Input id of the START slot (one past the last motion token)."""
+        return self.vocab_size
+
+
+@dataclass
+class GPTCache:
+    """State of incremental decoding for a batch of rows (see :meth:`TokenGPT.new_cache`).
+
+    With guidance, the cache holds 2B rows: the B conditional rows, then their B null-text twins.
+
+    Attributes:
+        text: (R, C) conditioning vector added at every position of each row.
+        kv: per layer (keys, values), each (R, H, L, C/H); empty before the first step.
+        valid: (R, L) which cached positions each row may attend to (False after a row reset).
+        pos: (R,) the position id of each row's next input.
+        tokens: (R, L) the input ids that produced the cache (for re-priming the window).
+        path: (R, L, path_dim) the input path features that produced the cache.
+        guidance: classifier-free guidance scale (1 = off).
+    """
+
+    text: torch.Tensor
+    kv: list[tuple[torch.Tensor, torch.Tensor]] = field(default_factory=list)
+    valid: torch.Tensor | None = None
+    pos: torch.Tensor | None = None
+    tokens: torch.Tensor | None = None
+    path: torch.Tensor | None = None
+    guidance: float = 1.0
+
+    @property
+    def length(self) -> int:
+        return 0 if self.tokens is None else int(self.tokens.shape[1])
+
+    @property
+    def batch_size(self) -> int:
+        rows = self.text.shape[0]
+        return rows // 2 if self.guidance != 1.0 else rows
+
+
+class CausalSelfAttention(nn.Module):
+    def __init__(self, config: GPTConfig) -> None:
+        super().__init__()
+        self.n_head = config.n_head
+        self.qkv = nn.Linear(config.n_embd, 3 * config.n_embd)
+        self.proj = nn.Linear(config.n_embd, config.n_embd)
+        self.dropout = config.dropout
+
+    def forward(
+        self, x: torch.Tensor, mask: torch.Tensor, past: tuple[torch.Tensor, torch.Tensor] | None
+    ) -> tuple[torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
+        B, T, C = x.shape
+        q, k, v = self.qkv(x).split(C, dim=2)
+        q, k, v = (
+            t.view(B, T, self.n_head, C // self.n_head).transpose(1, 2) for t in (q, k, v)
+        )  # (B, H, T, hd)
+        if past is not None:
+            k, v = torch.cat([past[0], k], dim=2), torch.cat([past[1], v], dim=2)  # (B, H, L+T, hd)
+        y = F.scaled_dot_product_attention(
+            q, k, v, attn_mask=mask, dropout_p=self.dropout if self.training else 0.0
+        )  # (B, H, T, hd)
+        return self.proj(y.transpose(1, 2).reshape(B, T, C)), (k, v)
+
+
+class Block(nn.Module):
+    def __init__(self, config: GPTConfig) -> None:
+        super().__init__()
+        self.ln_1 = nn.LayerNorm(config.n_embd)
+        self.attn = CausalSelfAttention(config)
+        self.ln_2 = nn.LayerNorm(config.n_embd)
+        self.mlp = nn.Sequential(
+            nn.Linear(config.n_embd, 4 * config.n_embd),
+            nn.GELU(),
+            nn.Linear(4 * config.n_embd, config.n_embd),
+            nn.Dropout(config.dropout),
+        )
+
+    def forward(
+        self, x: torch.Tensor, mask: torch.Tensor, past: tuple[torch.Tensor, torch.Tensor] | None
+    ) -> tuple[torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
+        a, kv = self.attn(self.ln_1(x), mask, past)
+        x = x + a
+        return x + self.mlp(self.ln_2(x)), kv
+
+
+def _sample(
+    logits: torch.Tensor,
+    temperature: float,
+    top_p: float | None,
+    generator: torch.Generator | list[torch.Generator] | None,
+) -> torch.Tensor:
+    """(B, V) logits -> (B,) sampled ids (multinomial, optional nucleus)."""
+    probs = F.softmax(logits.float() / temperature, dim=-1)
+    if top_p is not None and top_p < 1.0:
+        sorted_p, order = probs.sort(dim=-1, descending=True)
+        # Keep the smallest prefix whose mass reaches top_p (always at least the top token).
+        drop = sorted_p.cumsum(-1) - sorted_p >= top_p
+        sorted_p = sorted_p.masked_fill(drop, 0.0)
+        probs = torch.zeros_like(probs).scatter_(-1, order, sorted_p)
+    if isinstance(generator, (list, tuple)):
+        if len(generator) != probs.shape[0]:
+            raise ValueError(f"got {len(generator)} generators for a batch of {probs.shape[0]}")
+        return torch.cat(
+            [torch.multinomial(p[None], 1, generator=g)[0] for p, g in zip(probs, generator, strict=True)]
+        )
+    return torch.multinomial(probs, 1, generator=generator)[:, 0]
+
+
+class TokenGPT(nn.Module):
+    """Causal transformer over motion tokens, conditioned on text and per-token path features."""
+
+    def __init__(self, config: GPTConfig) -> None:
+        super().__init__()
+        self.config = c = config
+        self.tok_emb = nn.Embedding(c.vocab_size + 1, c.n_embd)  # + the START slot
+        self.pos_emb = nn.Embedding(c.block_size, c.n_embd)
+        self.path_mlp = nn.Sequential(
+            nn.Linear(c.path_dim, c.n_embd), nn.GELU(), nn.Linear(c.n_embd, c.n_embd)
+        )
+        self.text_proj = nn.Linear(c.text_dim, c.n_embd)
+        self.null_text = nn.Parameter(torch.zeros(c.n_embd))
+        self.drop = nn.Dropout(c.dropout)
+        self.blocks = nn.ModuleList([Block(c) for _ in range(c.n_layer)])
+        self.ln_f = nn.LayerNorm(c.n_embd)
+        self.head = nn.Linear(c.n_embd, c.vocab_size, bias=False)
+        self.apply(self._init_weights)
+        for name, p in self.named_parameters():
+            if name.endswith("proj.weight") and "text" not in name or name.endswith("mlp.2.weight"):
+                nn.init.normal_(p, std=0.02 / math.sqrt(2 * c.n_layer))  # GPT-2's residual scaling
+
+    @staticmethod
+    def _init_weights(module: nn.Module) -> None:
+        if isinstance(module, nn.Linear):
+            nn.init.normal_(module.weight, std=0.02)
+            if module.bias is not None:
+                nn.init.zeros_(module.bias)
+        elif isinstance(module, nn.Embedding):
+            nn.init.normal_(module.weight, std=0.02)
+
+    # --- conditioning -------------------------------------------------------------------------
+
+    def text_condition(self, text_emb: torch.Tensor | None, drop: torch.Tensor | None = None) -> torch.Tensor:
+        """(B, text_dim) text embeddings -> (B, n_embd) conditioning vectors.
+
+        Rows where the optional (B,) bool `drop` is True get the learned null text instead.
+        """
+        if text_emb is None:
+            raise ValueError("text_emb is required (rows can be made unconditional with `drop`)")
+        if text_emb.ndim != 2 or text_emb.shape[1] != self.config.text_dim:
+            raise ValueError(f"text_emb must be (B, {self.config.text_dim}), got {tuple(text_emb.shape)}")
+        cond = self.text_proj(text_emb)
+        if drop is not None:
+            cond = torch.where(drop[:, None], self.null_text.expand_as(cond), cond)
+        return cond
+
+    def _embed(
+        self, tokens: torch.Tensor, path: torch.Tensor, text: torch.Tensor, pos: torch.Tensor
+    ) -> torch.Tensor:
+        if path.shape[:2] != tokens.shape or path.shape[-1] != self.config.path_dim:
+            raise ValueError(
+                f"path features must be (B, N, {self.config.path_dim}) like tokens {tuple(tokens.shape)}, "
+                f"got {tuple(path.shape)}"
+            )
+        x = self.tok_emb(tokens) + self.path_mlp(path) + text[:, None] + self.pos_emb(pos)  # (B, N, C)
+        return self.drop(x)
+
+    def _run(
+        self,
+        x: torch.Tensor,
+        new_valid: torch.Tensor,
+        past: list[tuple[torch.Tensor, torch.Tensor]] | None,
+        past_valid: torch.Tensor | None,
+    ) -> tuple[torch.Tensor, list[tuple[torch.Tensor, torch.Tensor]]]:
+        """Transformer over new inputs x (B, N, C) after an optional cached past; -> logits (B, N, V)."""
+        B, N, _ = x.shape
+        causal = torch.ones(N, N, dtype=torch.bool, device=x.device).tril()
+        mask = causal[None] & new_valid[:, None, :]  # (B, N, N)
+        if past:
+            mask = torch.cat([past_valid[:, None, :].expand(B, N, -1), mask], dim=2)  # (B, N, L+N)
+        # Every query sees at least itself, so padded queries never produce NaN.
+        eye = torch.zeros_like(mask)
+        eye[:, :, -N:] = torch.eye(N, dtype=torch.bool, device=x.device)
+        mask = (mask | eye)[:, None]  # (B, 1, N, L+N)
+        kvs = []
+        for i, block in enumerate(self.blocks):
+            x, kv = block(x, mask, past[i] if past else None)
+            kvs.append(kv)
+        return self.head(self.ln_f(x)), kvs
+
+    # --- training / full recomputation -------------------------------------------------------
+
+    def forward(
+        self,
+        prev_tokens: torch.Tensor,
+        path_feats: torch.Tensor,
+        text_emb: torch.Tensor | None = None,
+        targets: torch.Tensor | None = None,
+        text_drop: torch.Tensor | None = None,
+        kv_cache: GPTCache | None = None,
+    ) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """Logits for every position.
+
+        Args:
+            prev_tokens: (B, N) long inputs: START (config.start_token) or the previous token.
+            path_feats: (B, N, path_dim) path features of the token predicted at each position.
+            text_emb: (B, text_dim) caption embeddings (not used with kv_cache, which holds the text).
+            targets: optional (B, N) long token ids; -1 = ignored (padding).
+            text_drop: optional (B,) bool, rows that get the null text (training dropout).
+            kv_cache: continue decoding: the N inputs are appended to the cache (in place; the
+                window slides when full) and positions continue from it. Must hold B rows
+                (no guidance).
+
+        Returns:
+            logits (B, N, vocab_size), and the mean cross-entropy over non-ignored targets (or None).
+        """
+        if prev_tokens.ndim != 2:
+            raise ValueError(f"prev_tokens must be (B, N), got {tuple(prev_tokens.shape)}")
+        if kv_cache is not None:
+            if kv_cache.guidance != 1.0:
+                raise ValueError("forward(kv_cache=...) needs a cache without guidance; use step()")
+            logits = self._append(kv_cache, prev_tokens, path_feats)
+        else:
+            B, N = prev_tokens.shape
+            if N > self.config.block_size:
+                raise ValueError(f"sequence of {N} tokens exceeds block_size {self.config.block_size}")
+            pos = torch.arange(N, device=prev_tokens.device).expand(B, N)
+            x = self._embed(prev_tokens, path_feats, self.text_condition(text_emb, text_drop), pos)
+            valid = torch.ones(B, N, dtype=torch.bool, device=x.device)
+            logits, _ = self._run(x, valid, None, None)
+        loss = None
+        if targets is not None:
+            loss = F.cross_entropy(logits.reshape(-1, logits.shape[-1]), targets.reshape(-1), ignore_index=-1)
+        return logits, loss
+
+    # --- incremental decoding -----------------------------------------------------------------
+
+    def new_cache(self, text_emb: torch.Tensor, guidance: float = 1.0) -> GPTCache:
+        """An empty decoding state for B rows: (B, text_dim) text embeddings; guidance 1 = off."""
+        cond = self.text_condition(text_emb)
+        if guidance != 1.0:
+            cond = torch.cat([cond, self.null_text.expand_as(cond)], dim=0)
+        device = cond.device
+        rows = cond.shape[0]
+        return GPTCache(
+            text=cond,
+            valid=torch.zeros(rows, 0, dtype=torch.bool, device=device),
+            pos=torch.zeros(rows, dtype=torch.long, device=device),
+            tokens=torch.zeros(rows, 0, dtype=torch.long, device=device),
+            path=torch.zeros(rows, 0, self.config.path_dim, device=device),
+            guidance=float(guidance),
+        )
+
+    def _rows(self, cache: GPTCache, index: int | list[int] | None) -> torch.Tensor:
+        B = cache.batch_size
+        idx = torch.arange(B) if index is None else torch.as_tensor(index, dtype=torch.long).reshape(-1)
+        if idx.numel() and (idx.min() < 0 or idx.max() >= B):
+            raise IndexError(f"row index {index} out of range for a batch of {B}")
+        return idx.to(cache.text.device)
+
+    def set_cache_text(
+        self, cache: GPTCache, text_emb: torch.Tensor, index: int | list[int] | None = None
+    ) -> None:
+        """Change the caption of some rows from their next token on (the cached past is kept)."""
+        rows = self._rows(cache, index)
+        cache.text[rows] = self.text_condition(text_emb.reshape(len(rows), -1)).to(cache.text.dtype)
+
+    def reset_cache_rows(self, cache: GPTCache, index: int | list[int], text_emb: torch.Tensor) -> None:
+        """Restart some rows from START with a new caption (their past is forgotten)."""
+        rows = self._rows(cache, index)
+        self.set_cache_text(cache, text_emb, rows.tolist())
+        if cache.guidance != 1.0:
+            rows = torch.cat([rows, rows + cache.batch_size])
+        cache.valid[rows] = False
+        cache.pos[rows] = 0
+
+    def _reprime(self, cache: GPTCache, keep: int) -> None:
+        """Rebuild the cache from each row's newest `keep` valid inputs, renumbered from position 0."""
+        R, L = cache.tokens.shape
+        device = cache.text.device
+        # Right-align each row's newest valid inputs; rank = how many valid inputs follow.
+        after = cache.valid.flip(1).cumsum(1).flip(1) - cache.valid.long()  # (R, L)
+        sel = cache.valid & (after < keep)
+        count = sel.sum(1)  # (R,)
+        slot = keep - 1 - after  # target column of each selected input
+        tokens = torch.full((R, keep), self.config.start_token, dtype=torch.long, device=device)
+        path = torch.zeros(R, keep, self.config.path_dim, device=device)
+        r, c = sel.nonzero(as_tuple=True)
+        tokens[r, slot[r, c]] = cache.tokens[r, c]
+        path[r, slot[r, c]] = cache.path[r, c]
+        cols = torch.arange(keep, device=device)[None]
+        valid = cols >= (keep - count)[:, None]  # (R, keep)
+        pos = (cols - (keep - count)[:, None]).clamp_min(0)
+        x = self._embed(tokens, path, cache.text, pos)
+        _, kv = self._run(x, valid, None, None)
+        cache.kv, cache.valid, cache.pos, cache.tokens, cache.path = kv, valid, count.clone(), tokens, path
+
+    def _append(self, cache: GPTCache, tokens: torch.Tensor, path: torch.Tensor) -> torch.Tensor:
+        """Append (R, N) inputs to the cache, sliding the window if needed; -> logits (R, N, V)."""
+        N = tokens.shape[1]
+        block = self.config.block_size
+        if N > block:
+            raise ValueError(f"cannot append {N} tokens at once to a window of {block}")
+        if cache.length + N > block:
+            self._reprime(cache, min(block // 2, block - N))
+        pos = cache.pos[:, None] + torch.arange(N, device=tokens.device)[None]
+        x = self._embed(tokens, path.to(cache.text.dtype), cache.text, pos)
+        valid = torch.ones(tokens.shape, dtype=torch.bool, device=tokens.device)
+        logits, kv = self._run(x, valid, cache.kv or None, cache.valid)
+        cache.kv = kv
+        cache.valid = torch.cat([cache.valid, valid], dim=1)
+        cache.pos = cache.pos + N
+        cache.tokens = torch.cat([cache.tokens, tokens], dim=1)
+        cache.path = torch.cat([cache.path, path.to(cache.path.dtype)], dim=1)
+        return logits
+
+    @torch.no_grad()
+    def step(
+        self, cache: GPTCache, prev_token: torch.Tensor | None, path_feat: torch.Tensor
+    ) -> tuple[torch.Tensor, GPTCache]:
+        """One decoding step for every row.
+
+        Args:
+            cache: from :meth:`new_cache` (updated in place and returned).
+            prev_token: (B,) long, the token sampled at the previous step; rows at position 0
+                (fresh or reset) take START whatever is passed. None = every row starts.
+            path_feat: (B, path_dim) path features of the token about to be predicted.
+
+        Returns:
+            logits (B, vocab_size) of the next token (guidance applied), and the cache.
+        """
+        B = cache.batch_size
+        if path_feat.shape != (B, self.config.path_dim):
+            raise ValueError(f"path_feat must be ({B}, {self.config.path_dim}), got {tuple(path_feat.shape)}")
+        device = cache.text.device
+        start = torch.full((B,), self.config.start_token, dtype=torch.long, device=device)
+        prev = start if prev_token is None else prev_token.to(device).long().reshape(B)
+        path = path_feat.to(device)
+        if cache.guidance != 1.0:
+            prev, path = torch.cat([prev, prev]), torch.cat([path, path])
+            start = torch.cat([start, start])
+        prev = torch.where(cache.pos == 0, start, prev)
+        logits = self._append(cache, prev[:, None], path[:, None])[:, 0]  # (R, V)
+        if cache.guidance != 1.0:
+            cond, uncond = logits[:B], logits[B:]
+            logits = uncond + cache.guidance * (cond - uncond)
+        return logits, cache
+
+    @torch.no_grad()
+    def generate(
+        self,
+        text_emb: torch.Tensor,
+        path_feats: torch.Tensor,
+        num_tokens: int,
+        temperature: float = 1.0,
+        top_p: float | None = None,
+        generator: torch.Generator | list[torch.Generator] | None = None,
+        guidance: float = 1.0,
+    ) -> torch.Tensor:
+        """Sample token sequences of any length (the window slides past block_size).
+
+        Args:
+            text_emb: (B, text_dim) caption embeddings.
+            path_feats: (B, >= num_tokens, path_dim) path features of each token to generate.
+            num_tokens: tokens to sample.
+            temperature: softmax temperature (> 0).
+            top_p: optional nucleus mass in (0, 1].
+            generator: one torch.Generator for the batch, or one per row (then each row's samples
+                equal those of generating it alone with that generator).
+            guidance: classifier-free guidance scale (1 = off).
+
+        Returns:
+            (B, num_tokens) long token ids.
+        """
+        if temperature <= 0:
+            raise ValueError(f"temperature must be > 0 (greedy decoding collapses motion), got {temperature}")
+        if top_p is not None and not 0.0 < top_p <= 1.0:
+            raise ValueError(f"top_p must be in (0, 1], got {top_p}")
+        B = text_emb.shape[0]
+        if path_feats.ndim != 3 or path_feats.shape[0] != B or path_feats.shape[1] < num_tokens:
+            raise ValueError(f"path_feats must be ({B}, >= {num_tokens}, D), got {tuple(path_feats.shape)}")
+        cache = self.new_cache(text_emb, guidance)
+        out = torch.zeros(B, num_tokens, dtype=torch.long, device=text_emb.device)
+        prev = None
+        for i in range(num_tokens):
+            logits, cache = self.step(cache, prev, path_feats[:, i])
+            prev = _sample(logits, temperature, top_p, generator)
+            out[:, i] = prev
+        return out

