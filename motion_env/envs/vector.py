@@ -1,0 +1,223 @@
+"""A natively batched Waypoints-v0: N characters, one batched generator call per frame.
+
+``gym.make_vec("motion_env/Waypoints-v0", num_envs=N, vectorization_mode="vector_entry_point")``
+builds :class:`WaypointsVectorEnv`. Each sub-environment behaves as :class:`WaypointsEnv` (same
+actions, observations, rewards, route semantics); the difference is that all N characters share
+one generator stream, so a step costs one batched forward pass instead of N.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from motion_env.envs.core import (
+    CharacterBatch,
+    EnvConfig,
+    check_actions,
+    sample_route,
+    sample_start,
+    validate_obstacles,
+    validate_start,
+    validate_text,
+    validate_text_pool,
+)
+from motion_env.envs.waypoints import make_generator, observation_space
+from motion_env.paths import validate_waypoints
+from motion_env.skeleton import FPS
+
+_RESET_OPTIONS = ("text", "waypoints", "start")
+
+
+class WaypointsVectorEnv(VectorEnv):
+    """N Waypoints-v0 characters stepped together through one batched generator stream.
+
+    Arguments are those of :class:`motion_env.envs.WaypointsEnv` plus ``num_envs`` and
+    ``max_episode_steps`` (truncation is done here, since no ``TimeLimit`` wraps a vector env;
+    ``gym.make_vec`` passes the registration's 1000). ``render_mode`` must be None.
+
+    Autoreset follows Gymnasium's ``AutoresetMode.NEXT_STEP``: the step after a sub-environment
+    terminates or truncates resets it (a new caption, route and start from ``self.np_random``, or
+    the reset options given to the last :meth:`reset`), ignores its action and returns its first
+    observation with reward 0 and both flags False. (With ``frames_per_step`` > 1 the stream still
+    steps such a character through the first F - 1 frames of that step before restarting it, so
+    its ``infos["step_joints"]`` row holds F - 1 frames of the old episode, then the new first one.)
+
+    ``reset(seed, options)`` resets every sub-environment; options ``text``, ``waypoints`` and
+    ``start`` apply to all of them (a value left out is drawn per sub-environment). ``infos`` hold
+    the per-env entries of :class:`WaypointsEnv`'s ``info`` as arrays with a leading N axis (and
+    Gymnasium's ``_name`` masks, all True).
+    """
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": [], "render_fps": FPS}
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        max_episode_steps: int | None = None,
+        generator: Any | None = None,
+        model_path: str | None = None,
+        text_pool: Sequence[str] | None = None,
+        action_mode: str = "absolute",
+        frames_per_step: int = 1,
+        arrive_radius: float = 0.5,
+        terminate_on_arrival: bool = True,
+        render_mode: str | None = None,
+        obstacles: np.ndarray | Sequence | None = None,
+        arena_size: float = 10.0,
+        snap_radius: float = 0.05,
+        progress_weight: float = 1.0,
+        arrival_bonus: float = 1.0,
+        collision_penalty: float = 1.0,
+        invalid_action: str = "raise",
+        random_start: bool = False,
+        device: str = "cpu",
+    ) -> None:
+        if int(num_envs) < 1:
+            raise ValueError(f"num_envs must be >= 1, got {num_envs}")
+        if max_episode_steps is not None and int(max_episode_steps) < 1:
+            raise ValueError(f"max_episode_steps must be >= 1 or None, got {max_episode_steps}")
+        if render_mode is not None:
+            raise ValueError(
+                f"WaypointsVectorEnv does not render (render_mode must be None, got {render_mode!r})"
+            )
+        self.config = EnvConfig(
+            action_mode=action_mode,
+            frames_per_step=frames_per_step,
+            arrive_radius=arrive_radius,
+            terminate_on_arrival=terminate_on_arrival,
+            arena_size=arena_size,
+            snap_radius=snap_radius,
+            progress_weight=progress_weight,
+            arrival_bonus=arrival_bonus,
+            collision_penalty=collision_penalty,
+            invalid_action=invalid_action,
+            random_start=random_start,
+            trail_length=1,
+        )
+        self.num_envs = int(num_envs)
+        self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
+        self.render_mode = None
+        self.metadata = {**self.metadata, "render_fps": FPS / self.config.frames_per_step}
+        self.text_pool = validate_text_pool(text_pool)
+        self.obstacles = validate_obstacles(obstacles)
+        self.generator = make_generator(generator, model_path, device)
+        bound = np.float32(self.config.action_bound)
+        self.single_action_space = spaces.Box(-bound, bound, (2,), np.float32)
+        self.single_observation_space = observation_space()
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self._batch = CharacterBatch(self.config, self.obstacles)
+        self._options: dict[str, Any] = {}
+        self._autoreset = np.zeros(self.num_envs, bool)
+        self._steps = np.zeros(self.num_envs, np.int64)
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        if seed is not None and not isinstance(seed, (int, np.integer)):
+            raise TypeError(f"seed must be an int or None (one seed for the whole batch), got {seed!r}")
+        super().reset(seed=seed)
+        options = dict(options or {})
+        unknown = sorted(set(options) - set(_RESET_OPTIONS))
+        if unknown:
+            raise ValueError(f"unknown reset options {unknown}; known: {list(_RESET_OPTIONS)}")
+        if options.get("text") is not None:
+            options["text"] = validate_text(options["text"])
+        if options.get("waypoints") is not None:
+            options["waypoints"] = validate_waypoints(options["waypoints"])
+        if options.get("start") is not None:
+            options["start"] = validate_start(options["start"])
+        self._options = options
+        episodes = [self._episode() for _ in range(self.num_envs)]
+        texts, routes, starts = (list(x) for x in zip(*episodes))
+        seed_ = int(self.np_random.integers(2**31 - 1))
+        self._batch.start(self.generator, texts, routes, np.stack(starts), seed=seed_)
+        self._autoreset[:] = False
+        self._steps[:] = 0
+        zeros = np.zeros(self.num_envs)
+        flags = np.zeros(self.num_envs, bool)
+        terms = {"reward_progress": zeros, "reward_arrival": zeros, "reward_collision": zeros}
+        return self._batch.observations(), self._infos(terms, flags, flags)
+
+    def step(
+        self, actions: np.ndarray
+    ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        batch = self._batch
+        if batch.stream is None:
+            raise RuntimeError("call reset() before step()")
+        cfg = self.config
+        acts, valid, clipped = check_actions(actions, self.num_envs, cfg.action_bound, cfg.invalid_action)
+        restart = np.nonzero(self._autoreset)[0]
+        live = ~self._autoreset
+        batch.begin_step()
+        batch.command(acts, valid & live)
+        for f in range(cfg.frames_per_step):
+            if f == cfg.frames_per_step - 1:
+                # Restart just before the last frame, so a restarted character's first frame is
+                # the observation its new episode starts with (as WaypointsEnv.reset emits one).
+                for i in restart:
+                    text, route, start = self._episode()
+                    batch.restart(int(i), text, route, start)
+            batch.emit_frame()
+        terms = {name: np.where(live, value, 0.0) for name, value in batch.rewards().items()}
+        reward = sum(terms.values()).astype(np.float64)
+        terminated = live & cfg.terminate_on_arrival & batch.reached
+        self._steps = np.where(live, self._steps + 1, 0)
+        if self.max_episode_steps is None:
+            truncated = np.zeros(self.num_envs, bool)
+        else:
+            truncated = live & ~terminated & (self._steps >= self.max_episode_steps)
+        self._autoreset = terminated | truncated
+        infos = self._infos(terms, clipped & live, ~valid & live)
+        return batch.observations(), reward, terminated, truncated, infos
+
+    def set_text(self, text: str, index: int | None = None) -> None:
+        """Change the caption of one character (or all, index=None) mid-episode."""
+        if self._batch.stream is None:
+            raise RuntimeError("call reset() first")
+        if index is not None and not 0 <= int(index) < self.num_envs:
+            raise IndexError(f"index {index} out of range for {self.num_envs} envs")
+        self._batch.set_text(validate_text(text), index=None if index is None else int(index))
+
+    def close(self, **kwargs: Any) -> None:
+        self._batch.stream = None
+        self.closed = True
+
+    def _episode(self) -> tuple[str, np.ndarray, np.ndarray]:
+        rng, opts = self.np_random, self._options
+        text = opts.get("text") or self.text_pool[int(rng.integers(len(self.text_pool)))]
+        start = opts.get("start")
+        start = sample_start(rng, self.config, self.obstacles) if start is None else start
+        route = opts.get("waypoints")
+        route = sample_route(rng, start, self.config, self.obstacles) if route is None else route
+        return text, route, start
+
+    def _infos(
+        self, terms: dict[str, np.ndarray], clipped: np.ndarray, invalid: np.ndarray
+    ) -> dict[str, Any]:
+        batch = self._batch
+        target = batch.route_target
+        info: dict[str, Any] = {
+            "joints": batch.joints.copy(),
+            "step_joints": batch.step_joints(),
+            "text": np.array(batch.texts, dtype=object),
+            "frame": np.asarray(batch.stream.frame_index, dtype=np.int64).copy(),
+            "route_index": batch.k.copy(),
+            "route_target": target.astype(np.float32),
+            "command": batch.command_xz.astype(np.float32),
+            "following_route": batch.following.copy(),
+            "distance": np.linalg.norm(batch.pos - target, axis=1),
+            "is_success": batch.reached.copy(),
+            "action_clipped": np.asarray(clipped, bool).copy(),
+            "action_invalid": np.asarray(invalid, bool).copy(),
+            **{name: np.asarray(value, np.float64).copy() for name, value in terms.items()},
+        }
+        for name in list(info):
+            info[f"_{name}"] = np.ones(self.num_envs, bool)
+        return info

@@ -1,0 +1,349 @@
+"""`motion_env/Waypoints-v0`: walk a generated human along a route of waypoints."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from motion_env.envs.core import (
+    CharacterBatch,
+    EnvConfig,
+    check_actions,
+    sample_route,
+    sample_start,
+    validate_obstacles,
+    validate_start,
+    validate_text,
+    validate_text_pool,
+)
+from motion_env.paths import validate_waypoints
+from motion_env.skeleton import FPS, NUM_JOINTS
+
+RENDER_STYLES = ("stick", "humanoid")
+
+
+def make_generator(generator: Any | None, model_path: str | None, device: str) -> Any:
+    """The given generator, or the shipped (or `model_path`) model loaded on `device`."""
+    if generator is not None:
+        if not callable(getattr(generator, "stream", None)):
+            raise TypeError(
+                f"generator must have a stream(...) method (a MotionGenerator), got {type(generator)}"
+            )
+        return generator
+    from motion_env.generator import MotionGenerator
+
+    return MotionGenerator.from_pretrained(model_path, device=device)
+
+
+def observation_space() -> spaces.Dict:
+    """The Dict observation space of one character (see :class:`WaypointsEnv`)."""
+    inf = np.float32(np.inf)
+    return spaces.Dict(
+        {
+            "root": spaces.Box(
+                low=np.array([-inf, -inf, -1.0, -1.0], np.float32),
+                high=np.array([inf, inf, 1.0, 1.0], np.float32),
+                dtype=np.float32,
+            ),
+            "target": spaces.Box(-inf, inf, (2,), np.float32),
+            "velocity": spaces.Box(-inf, inf, (3,), np.float32),
+            "pose": spaces.Box(-inf, inf, (NUM_JOINTS * 3,), np.float32),
+        }
+    )
+
+
+class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
+    """A generated human walks a route of waypoints; the agent says where to go next.
+
+    ## Description
+    Every step the streaming motion generator (:class:`motion_env.MotionGenerator`) emits the next
+    body pose (or ``frames_per_step`` poses, 20 per second) of a character that moves as the caption
+    says ("a person jogs", ...) towards the point it was told to go to. Poses stay continuous when
+    the caption (:meth:`set_text`) or the target (an action) changes mid-episode.
+
+    The *route* is the list of waypoints given at reset (``options["waypoints"]``, or a random one).
+    The *route target* R[k] is the next waypoint of the route the character has not passed; it is
+    what the observation's ``"target"`` and the reward refer to. R[k] is passed when the pelvis comes
+    within ``arrive_radius`` of it (or, while the character follows the route, when R[k] is timed
+    and its frame has been reached, as the generator's path controller does). The last waypoint is
+    never passed: reaching it is the end of the route.
+
+    ## Action Space
+    ``Box(-arena_size, arena_size, (2,), float32)``: the point (x, z) in world metres that the
+    character walks to next, which replaces its current target. With ``action_mode="relative"`` the
+    action is (dx, dz) in the character's heading frame (x lateral, + = its left; z forward) from the
+    pelvis, in ``Box(-3 arena_size, 3 arena_size, (2,))``. What an action does to the route:
+
+    - a point within ``snap_radius`` (5 cm) of a route waypoint R[j] with j >= k means "follow the
+      route from R[j]": the character walks the rest of the route, R[j:], with its timing; k jumps to
+      j (skipped waypoints earn no bonus). **To keep following the route, issue the route target**:
+      ``info["route_target"]`` (absolute mode) or ``obs["target"]`` (relative mode). A fresh
+      episode starts out following the route from R[0]; re-issuing the current command changes
+      nothing.
+    - any other point is a detour: the character walks to that point and stays there. The route is
+      kept (its waypoints are still passed if the character happens to come near them) and is
+      resumed by issuing one of its waypoints again.
+    - bad actions: finite values outside the Box are clipped into it (``info["action_clipped"]``);
+      NaN or infinite values raise a ``ValueError`` before anything changes, so the episode can
+      continue with the next finite action (``invalid_action="hold"`` instead keeps the previous
+      target and sets ``info["action_invalid"]``); a wrong shape always raises ``ValueError``.
+
+    ## Observation Space
+    A ``Dict`` of float32 Boxes (``FlattenObservation`` turns it into 75 numbers), all of the last
+    frame emitted, with heading θ from the generator's root (θ = 0 faces +Z; facing (sin θ, cos θ)):
+
+    - ``"root"`` (4,): pelvis world x, z, cos θ, sin θ
+    - ``"target"`` (2,): the route target relative to the pelvis, heading frame (lateral, forward)
+    - ``"velocity"`` (3,): pelvis velocity in the heading frame (m/s, lateral and forward) and
+      the turn rate dθ/dt (rad/s)
+    - ``"pose"`` (66,): the 22 joints (HumanML3D order) in the heading frame, flattened: x lateral and
+      z forward relative to the pelvis, y the height above the floor
+
+    ## Rewards
+    Summed over the frames of a step, each term in ``info`` as ``reward_*``:
+
+    - ``reward_progress``: ``progress_weight`` x the metres the pelvis got closer to the route target;
+    - ``reward_arrival``: ``arrival_bonus`` for every route waypoint passed by arrival (the last one
+      included, once);
+    - ``reward_collision``: ``-collision_penalty`` per frame with the pelvis inside an obstacle.
+
+    ## Starting State
+    The character starts at ``options["start"]`` (x, z, heading), else at the origin facing +Z (or,
+    with ``random_start=True``, at a random free spot and heading in the arena), and follows the route
+    from R[0]. Missing reset options are drawn from ``self.np_random``: the caption from
+    ``text_pool``, a route of 2-4 untimed waypoints (legs of 1.5-3.5 m, turns up to 90 degrees,
+    clear of obstacles). ``reset`` emits the first frame. The same seed and options give the same poses.
+
+    ## Episode End
+    Terminated when the pelvis is within ``arrive_radius`` of the last waypoint after the others
+    were passed or skipped (``terminate_on_arrival=False`` keeps the episode running). Truncated by
+    the ``TimeLimit`` of the registration (1000 steps).
+
+    ## Arguments
+    ```python
+    gym.make("motion_env/Waypoints-v0", generator=None, model_path=None, text_pool=None,
+             action_mode="absolute", frames_per_step=1, arrive_radius=0.5,
+             terminate_on_arrival=True, render_mode=None, obstacles=None, arena_size=10.0,
+             snap_radius=0.05, progress_weight=1.0, arrival_bonus=1.0, collision_penalty=1.0,
+             invalid_action="raise", random_start=False, device="cpu", render_size=(480, 360),
+             render_style="stick")
+    ```
+    - ``generator``: a :class:`motion_env.MotionGenerator` (None loads the shipped model, or ``model_path``).
+    - ``text_pool``: captions a reset without ``options["text"]`` draws from.
+    - ``obstacles``: circles (N, 3) as (x, z, radius) in metres; drawn, avoided by random routes,
+      penalised by ``reward_collision`` (the generator itself does not see them).
+    - ``render_mode="rgb_array"``: a picture of the character with its trail, route, current
+      command (target) and obstacles; ``render_style="stick"`` (a stick figure, matplotlib) or
+      ``"humanoid"`` (the MuJoCo humanoid of :mod:`motion_env.replay`, needs offscreen OpenGL:
+      ``MUJOCO_GL=egl`` or ``osmesa``); ``render_size`` = (width, height) in pixels.
+
+    ``info`` holds ``joints`` (22, 3) world positions of the last frame emitted; ``step_joints``
+    (F, 22, 3) all the frames the step emitted (F = ``frames_per_step``; 1 after reset); ``text``;
+    ``frame`` (frames emitted so far); ``route`` (K, 2) x, z (with times: :attr:`route`);
+    ``route_index`` k; ``route_target`` and ``command`` (world x, z); ``following_route``;
+    ``distance`` (pelvis to route target, m); ``is_success`` (the last waypoint reached); the
+    reward terms and the action flags.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": FPS}
+    reset_options: tuple[str, ...] = ("text", "waypoints", "start")
+
+    def __init__(
+        self,
+        generator: Any | None = None,
+        model_path: str | None = None,
+        text_pool: Sequence[str] | None = None,
+        action_mode: str = "absolute",
+        frames_per_step: int = 1,
+        arrive_radius: float = 0.5,
+        terminate_on_arrival: bool = True,
+        render_mode: str | None = None,
+        obstacles: np.ndarray | Sequence | None = None,
+        arena_size: float = 10.0,
+        snap_radius: float = 0.05,
+        progress_weight: float = 1.0,
+        arrival_bonus: float = 1.0,
+        collision_penalty: float = 1.0,
+        invalid_action: str = "raise",
+        random_start: bool = False,
+        device: str = "cpu",
+        render_size: tuple[int, int] = (480, 360),
+        render_style: str = "stick",
+    ) -> None:
+        self.config = EnvConfig(
+            action_mode=action_mode,
+            frames_per_step=frames_per_step,
+            arrive_radius=arrive_radius,
+            terminate_on_arrival=terminate_on_arrival,
+            arena_size=arena_size,
+            snap_radius=snap_radius,
+            progress_weight=progress_weight,
+            arrival_bonus=arrival_bonus,
+            collision_penalty=collision_penalty,
+            invalid_action=invalid_action,
+            random_start=random_start,
+        )
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}"
+            )
+        if render_style not in RENDER_STYLES:
+            raise ValueError(f"render_style must be one of {RENDER_STYLES}, got {render_style!r}")
+        self.render_mode = render_mode
+        self.render_style = render_style
+        self.render_size = (int(render_size[0]), int(render_size[1]))
+        self._view: Any = None
+        self.metadata = {**self.metadata, "render_fps": FPS / self.config.frames_per_step}
+        self.text_pool = validate_text_pool(text_pool)
+        self.obstacles = validate_obstacles(obstacles)
+        self.generator = make_generator(generator, model_path, device)
+        bound = np.float32(self.config.action_bound)
+        self.action_space = spaces.Box(-bound, bound, (2,), np.float32)
+        self.observation_space = observation_space()
+        self._batch = CharacterBatch(self.config, self.obstacles)
+        self._flags = (False, False)
+
+    # -- Gymnasium API -------------------------------------------------------------------------
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        super().reset(seed=seed)
+        text, route, start = self._episode(options or {})
+        stream_seed = int(self.np_random.integers(2**31 - 1))
+        self._batch.start(self.generator, [text], [route], start[None], seed=stream_seed)
+        self._flags = (False, False)
+        return self._observation(), self._info()
+
+    def step(self, action: np.ndarray) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        if self._batch.stream is None:
+            raise RuntimeError("call reset() before step()")
+        cfg = self.config
+        actions, valid, clipped = check_actions(action, 1, cfg.action_bound, cfg.invalid_action)
+        batch = self._batch
+        batch.begin_step()
+        batch.command(actions, valid)
+        for _ in range(cfg.frames_per_step):
+            batch.emit_frame()
+        self._flags = (bool(clipped[0]), not bool(valid[0]))
+        terms = {name: float(v[0]) for name, v in self._reward_terms().items()}
+        reward = float(sum(terms.values()))
+        terminated = bool(cfg.terminate_on_arrival and batch.reached[0])
+        return self._observation(), reward, terminated, False, {**self._info(), **terms}
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode is None:
+            gym.logger.warn(
+                "render() called without a render_mode; make the env with render_mode='rgb_array'"
+            )
+            return None
+        if self._batch.stream is None:
+            raise RuntimeError("call reset() before render()")
+        batch = self._batch
+        obstacles = self.obstacles if len(self.obstacles) else None
+        if self.render_style == "humanoid":
+            if self._view is None:
+                from motion_env.envs.humanoid_view import HumanoidView
+
+                self._view = HumanoidView(*self.render_size)
+            trail = np.array(batch.trails[0])
+            return self._view.draw(batch.joints[0], trail, batch.command_xz[0], batch.routes[0], obstacles)
+        from motion_env.render import render_frame
+
+        return render_frame(
+            batch.joints[0],
+            path=np.array(batch.trails[0]),
+            target=batch.command_xz[0],
+            waypoints=batch.routes[0],
+            obstacles=obstacles,
+            title=batch.texts[0],
+            label=f"t = {(int(batch.stream.frame_index[0]) - 1) / FPS:.2f} s",
+            width=self.render_size[0],
+            height=self.render_size[1],
+        )
+
+    def close(self) -> None:
+        self._batch.stream = None
+        if self._view is not None:
+            self._view.close()
+            self._view = None
+
+    # -- editing mid-episode -------------------------------------------------------------------
+
+    def set_text(self, text: str) -> None:
+        """Change the caption mid-episode; the motion blends into the new one without a pop."""
+        self._require_episode()
+        self._batch.set_text(validate_text(text), index=0)
+
+    def set_route(self, waypoints: np.ndarray | Sequence) -> None:
+        """Replace the route mid-episode ((K, 2) or (K, 3), times = absolute frame indices).
+
+        The route index restarts at 0 and the character follows the new route from R[0].
+        """
+        self._require_episode()
+        self._batch.set_route(0, validate_waypoints(waypoints))
+
+    @property
+    def text(self) -> str:
+        self._require_episode()
+        return self._batch.texts[0]
+
+    @property
+    def route(self) -> np.ndarray:
+        """(K, 3) the current route (x, z, frame index or NaN)."""
+        self._require_episode()
+        return self._batch.routes[0].copy()
+
+    # -- internals -----------------------------------------------------------------------------
+
+    def _require_episode(self) -> None:
+        if self._batch.stream is None:
+            raise RuntimeError("call reset() first")
+
+    def _episode(self, options: dict[str, Any]) -> tuple[str, np.ndarray, np.ndarray]:
+        """Caption, route (K, 3) and start (3,) of a new episode from options and self.np_random."""
+        unknown = sorted(set(options) - set(self.reset_options))
+        if unknown:
+            raise ValueError(f"unknown reset options {unknown}; known: {list(self.reset_options)}")
+        rng = self.np_random
+        text = options.get("text")
+        text = self.text_pool[int(rng.integers(len(self.text_pool)))] if text is None else validate_text(text)
+        start = options.get("start")
+        start = sample_start(rng, self.config, self.obstacles) if start is None else validate_start(start)
+        route = self._route(options, start)
+        return text, route, start
+
+    def _route(self, options: dict[str, Any], start: np.ndarray) -> np.ndarray:
+        waypoints = options.get("waypoints")
+        if waypoints is None:
+            return sample_route(self.np_random, start, self.config, self.obstacles)
+        return validate_waypoints(waypoints)
+
+    def _reward_terms(self) -> dict[str, np.ndarray]:
+        return self._batch.rewards()
+
+    def _observation(self) -> dict[str, np.ndarray]:
+        return {name: value[0] for name, value in self._batch.observations().items()}
+
+    def _info(self) -> dict[str, Any]:
+        batch = self._batch
+        route_target = batch.route_target[0]
+        return {
+            "joints": batch.joints[0].copy(),
+            "step_joints": batch.step_joints()[0],
+            "text": batch.texts[0],
+            "frame": int(batch.stream.frame_index[0]),
+            "route": batch.routes[0][:, :2].copy(),  # x, z only: NaN times would break equality checks
+            "route_index": int(batch.k[0]),
+            "route_target": route_target.astype(np.float32),
+            "command": batch.command_xz[0].astype(np.float32),
+            "following_route": bool(batch.following[0]),
+            "distance": float(np.linalg.norm(batch.pos[0] - route_target)),
+            "is_success": bool(batch.reached[0]),
+            "action_clipped": self._flags[0],
+            "action_invalid": self._flags[1],
+        }

@@ -1,0 +1,106 @@
+"""Smoke tests of examples/: each runs top to bottom with the random model and tiny settings.
+
+They check that every example writes its video, top-down plot, motion and result; the walking
+quality of the examples is a property of the shipped model (see test_envs.py's slow tests).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+import motion_env
+
+os.environ.setdefault("HF_HUB_OFFLINE", "1")
+torch.set_num_threads(1)
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+COMMON = ["--random-model", "--video", "gif", "--width", "96", "--height", "64"]
+
+
+def _load(name: str):
+    spec = importlib.util.spec_from_file_location(f"example_{name}", EXAMPLES / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up while the file runs
+    spec.loader.exec_module(module)
+    return module
+
+
+def _run(name: str, out: Path, *flags: str) -> dict:
+    module = _load(name)
+    result = module.main(module.parse_args([*COMMON, "--out", str(out), *flags]))
+    assert (out / "result.json").is_file()
+    assert json.loads((out / "result.json").read_text())["args"]["random_model"] is True
+    return result
+
+
+def _check_outputs(out: Path, stem: str) -> motion_env.Motion:
+    assert (out / f"{stem}.gif").stat().st_size > 0
+    assert (out / f"{stem}.png").stat().st_size > 0
+    return motion_env.Motion.load(out / f"{stem}.npz")
+
+
+def test_astar_obstacles(tmp_path):
+    result = _run("astar_obstacles", tmp_path, "--max-steps", "12")
+    motion = _check_outputs(tmp_path, "astar_obstacles")
+    assert motion.num_frames == result["frames"] == 13
+    assert "min_obstacle_clearance_m" in result
+
+
+def test_waypoints_demo(tmp_path):
+    result = _run("waypoints_demo", tmp_path, "--max-steps", "12", "--route", "0,2;1,3,40")
+    motion = _check_outputs(tmp_path, "waypoints_demo")
+    assert motion.num_frames == 13 and motion.waypoints.shape == (2, 3)
+    assert len(result["waypoint_errors_m"]) == 2
+
+
+def test_edit_path_midrollout(tmp_path):
+    result = _run(
+        "edit_path_midrollout", tmp_path,
+        "--max-steps", "16", "--text-step", "3", "--path-step", "6", "--text2-step", "10",
+    )  # fmt: skip
+    _check_outputs(tmp_path, "edit_path_midrollout")
+    assert sorted(result["edits_at_frame"].values()) == [3, 6, 10]
+
+
+def test_sb3_ppo(tmp_path):
+    pytest.importorskip("stable_baselines3", reason="the optional 'rl' extra is not installed")
+    result = _run(
+        "sb3_ppo", tmp_path,
+        "--total-timesteps", "32", "--n-steps", "16", "--batch-size", "8", "--frames-per-step", "2",
+        "--episode-steps", "10", "--eval-steps", "5",
+    )  # fmt: skip
+    motion = _check_outputs(tmp_path, "sb3_ppo_eval")
+    assert motion.num_frames == 1 + 5 * 2 and np.isfinite(result["eval_return"])
+    assert (tmp_path / "ppo_waypoints.zip").is_file()
+
+
+def test_goal_reach_her(tmp_path):
+    pytest.importorskip("stable_baselines3", reason="the optional 'rl' extra is not installed")
+    result = _run(
+        "goal_reach_her", tmp_path,
+        "--total-timesteps", "24", "--learning-starts", "12", "--batch-size", "8", "--frames-per-step", "2",
+        "--episode-steps", "6", "--eval-steps", "5",
+    )  # fmt: skip
+    motion = _check_outputs(tmp_path, "goal_reach_her_eval")
+    assert motion.num_frames == 1 + 5 * 2 and isinstance(result["eval_success"], bool)
+    assert (tmp_path / "sac_her_goal_reach.zip").is_file()
+
+
+@pytest.mark.slow
+def test_astar_example_reaches_its_goal_around_the_obstacles_with_the_shipped_model(tmp_path):
+    try:
+        motion_env.MotionGenerator.from_pretrained()
+    except FileNotFoundError as exc:
+        pytest.skip(f"the shipped model is not installed: {exc}")
+    module = _load("astar_obstacles")
+    flags = ["--video", "gif", "--width", "96", "--height", "64", "--out", str(tmp_path)]
+    result = module.main(module.parse_args(flags))
+    assert result["reached_goal"] and result["final_distance_m"] < 0.75
+    assert result["pelvis_inside_obstacle_frames"] == 0 and result["min_obstacle_clearance_m"] > 0.0
