@@ -15,62 +15,304 @@ from collections.abc import Sequence
 def _add_show(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("show", help="draw a motion (.npz or BVH) as a stick-figure video and a path plot")
     p.add_argument("file", help="a .npz written by Motion.save, or a .bvh / .bvh.gz file")
-    p.add_argument("--out", default=None, help="video to write (.mp4 or .gif); default: FILE stem + .mp4")
+    p.add_argument(
+        "--out",
+        default=None,
+        help="video to write (.mp4 or .gif); default: <FILE stem>.mp4 in the current directory",
+    )
     p.add_argument("--plot", default=None, help="also write a top-down plot of the root path (.png)")
+    p.add_argument(
+        "--camera", choices=("follow", "fixed"), default="follow",
+        help="follow the character, or one fixed view of the whole route (default: follow)",
+    )  # fmt: skip
+    p.add_argument("--fps", type=float, default=None, help="video frame rate (default: the motion's)")
+    p.add_argument("--title", default=None, help="caption shown on the video (default: the motion's text)")
     p.set_defaults(run=_run_show)
 
 
 def _run_show(args: argparse.Namespace) -> int:
-    raise NotImplementedError("motion-env show is being built (issue 2)")
+    from pathlib import Path
+
+    from motion_env.clip import load_motion
+    from motion_env.render import VIDEO_SUFFIXES, plot_path, render_video
+
+    src = Path(args.file)
+    if args.out is None:
+        # The current directory, not the source's: mocap often sits in a read-only data folder.
+        stem = src.name[: -len(".bvh.gz")] if src.name.lower().endswith(".bvh.gz") else src.stem
+        out = Path(stem + ".mp4")
+    else:
+        out = Path(args.out)
+    # Check the outputs before loading, so that a typo fails at once.
+    if out.suffix.lower() not in VIDEO_SUFFIXES:
+        raise ValueError(f"--out {out}: unknown video type {out.suffix!r} (expected one of {VIDEO_SUFFIXES})")
+    if args.plot is not None and Path(args.plot).suffix.lower() != ".png":
+        raise ValueError(f"--plot {args.plot}: the path plot is written as a .png")
+    motion = load_motion(src)
+    # A clip without a caption (a BVH) is titled with its file name.
+    title = args.title if args.title is not None else motion.text or src.name
+    video = render_video(motion, out, fps=args.fps, title=title, camera=args.camera)
+    print(f"wrote {video} ({motion.num_frames} frames, {motion.duration:.1f} s)")
+    if args.plot is not None:
+        print(f"wrote {plot_path(motion, args.plot, title=title)}")
+    return 0
 
 
 def _add_data(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("data", help="build training datasets")
     dsub = p.add_subparsers(dest="data_command", required=True)
-    b = dsub.add_parser("build", help="BVH folders -> a HumanML3D-layout dataset directory")
+    b = dsub.add_parser(
+        "build",
+        help="BVH folders -> a HumanML3D-layout dataset directory",
+        description="Import every .bvh / .bvh.gz under the given folders onto the canonical skeleton "
+        "and write a HumanML3D-layout dataset (new_joints/, new_joint_vecs/, texts/, train/val/test.txt, "
+        "Mean.npy, Std.npy) with captions made from the file names (Bandai Namco labels, CMU-INDEX.md "
+        "descriptions, or the file-name words; a <stem>.txt next to a BVH file gives its captions).",
+    )
     b.add_argument("sources", nargs="+", help="folders searched recursively for .bvh / .bvh.gz files")
     b.add_argument("--out", required=True, help="output directory (must be empty or not exist)")
+    b.add_argument("--workers", type=int, default=2, help="import processes (default: 2)")
+    b.add_argument("--no-mirror", action="store_true", help="do not add mirrored copies of the takes")
+    b.add_argument("--captions", type=int, default=6, help="captions per clip (default: 6)")
+    b.add_argument("--seed", type=int, default=0, help="seed of the caption wording (default: 0)")
+    b.add_argument(
+        "--min-seconds", type=float, default=1.0, help="skip takes shorter than this (default: 1.0)"
+    )
+    b.add_argument("--cmu-index", default=None, help="CMU-INDEX.md to use (default: found next to the files)")
     b.set_defaults(run=_run_data_build)
 
 
 def _run_data_build(args: argparse.Namespace) -> int:
-    raise NotImplementedError("motion-env data build is being built (issue 2)")
+    from motion_env.dataset import build_dataset
+
+    try:
+        summary = build_dataset(
+            args.sources,
+            args.out,
+            mirror=not args.no_mirror,
+            workers=args.workers,
+            captions_per_clip=args.captions,
+            seed=args.seed,
+            min_seconds=args.min_seconds,
+            cmu_index=args.cmu_index,
+        )
+    except FileExistsError as exc:
+        print(f"motion-env data build: error: {exc}", file=sys.stderr)
+        return 2
+    print(summary.format())
+    return 0
 
 
 def _add_train(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("train", help="train one model of the generator")
+    p = sub.add_parser(
+        "train", help="train one model of the generator (VQ-VAE, then GPT; controller any time)"
+    )
+    p.add_argument("model", choices=("vqvae", "gpt", "controller"), help="which model to train")
+    p.add_argument("--data", required=True, help="HumanML3D-layout dataset directory (motion-env data build)")
+    p.add_argument("--out", required=True, help="checkpoint to write (resumed from when it exists)")
+    p.add_argument(
+        "--vqvae", default=None, help="gpt only: the trained VQ-VAE checkpoint that tokenises the data"
+    )
+    p.add_argument(
+        "--steps", type=int, default=None, help="total optimisation steps (default: the trainer's)"
+    )
+    p.add_argument("--batch-size", type=int, default=None, help="samples per step (default: the trainer's)")
+    p.add_argument("--lr", type=float, default=None, help="peak learning rate (default: the trainer's)")
+    p.add_argument("--window", type=int, default=None, help="vqvae/controller: frames per training window")
+    p.add_argument("--device", default="cpu", help="torch device: cpu, cuda, cuda:1, ...")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--max-minutes", type=float, default=None, help="stop (with a checkpoint) after this long")
+    p.add_argument("--no-resume", action="store_true", help="start afresh even if --out exists")
     p.set_defaults(run=_run_train)
 
 
 def _run_train(args: argparse.Namespace) -> int:
-    raise NotImplementedError("motion-env train is being built (issue 3)")
+    import json
+    from pathlib import Path
+
+    if not Path(args.data).is_dir():
+        raise FileNotFoundError(f"no dataset directory at {args.data}")
+    common = {
+        "device": args.device,
+        "resume": not args.no_resume,
+        "seed": args.seed,
+        "max_minutes": args.max_minutes,
+    }
+    optional = {"steps": args.steps, "batch_size": args.batch_size, "lr": args.lr}
+    if args.model != "gpt":
+        optional["window"] = args.window
+    elif args.window is not None:
+        raise ValueError("--window applies to vqvae and controller, not gpt")
+    common.update({k: v for k, v in optional.items() if v is not None})
+    if args.model == "vqvae":
+        from motion_env.train_body import train_vqvae
+
+        metrics = train_vqvae(args.data, args.out, **common)
+    elif args.model == "gpt":
+        from motion_env.train_body import train_gpt
+
+        if args.vqvae is None:
+            raise ValueError("training the gpt needs --vqvae CKPT (the trained VQ-VAE)")
+        metrics = train_gpt(args.data, args.vqvae, args.out, **common)
+    else:
+        from motion_env.train_controller import train_controller
+
+        metrics = train_controller(args.data, args.out, **common)
+    print(json.dumps({"model": args.model, "checkpoint": str(args.out), **metrics}, indent=2))
+    return 0
+
+
+def _parse_waypoints(text: str) -> list[list[float]]:
+    """Parse the --waypoints option: "x,z;x,z,t;..." -> rows of 3 (NaN time for "x,z")."""
+    rows = []
+    for k, item in enumerate(part for part in text.split(";") if part.strip()):
+        try:
+            values = [float(v) for v in item.split(",")]
+        except ValueError as exc:
+            raise ValueError(
+                f"--waypoints item {k} {item.strip()!r} is not 'x,z' or 'x,z,t' numbers"
+            ) from exc
+        if len(values) not in (2, 3):
+            raise ValueError(
+                f"--waypoints item {k} {item.strip()!r} has {len(values)} numbers, expected 2 or 3"
+            )
+        rows.append(values + [float("nan")] * (3 - len(values)))
+    if not rows:
+        raise ValueError("--waypoints is empty; give 'x,z,t;x,z,t' (t = frame index at 20 fps, optional)")
+    return rows
 
 
 def _add_generate(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("generate", help="text + waypoints -> a motion (.npz) and a video")
+    p.add_argument("--text", required=True, help='caption, e.g. "a person walks slowly"')
+    p.add_argument(
+        "--waypoints",
+        default=None,
+        help='"x,z,t;x,z,t": metres, optional frame index (20 fps); ";"-separated',
+    )
+    p.add_argument("--frames", type=int, default=200, help="frames to generate (20 fps; default 200 = 10 s)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same motion)")
+    p.add_argument("--start", default=None, help='"x,z,heading" of the first frame (default "0,0,0")')
+    p.add_argument("--out", default="motion.npz", help="motion file to write (.npz)")
+    p.add_argument("--video", default=None, help="also render a stick-figure video (.mp4 or .gif)")
+    p.add_argument("--plot", default=None, help="also draw a top-down plot of the path (.png)")
+    p.add_argument("--model", default=None, help="weights directory (default: the shipped model)")
+    p.add_argument(
+        "--random-model",
+        action="store_true",
+        help="use tiny UNTRAINED random weights (for testing the plumbing)",
+    )
+    p.add_argument("--device", default="cpu", help="torch device")
     p.set_defaults(run=_run_generate)
 
 
 def _run_generate(args: argparse.Namespace) -> int:
-    raise NotImplementedError("motion-env generate is being built (issue 3)")
+    from motion_env.generator import MotionGenerator
+
+    waypoints = None if args.waypoints is None else _parse_waypoints(args.waypoints)
+    start = None
+    if args.start is not None:
+        try:
+            start = [float(v) for v in args.start.split(",")]
+        except ValueError as exc:
+            raise ValueError(f"--start {args.start!r} must be 'x,z,heading' numbers") from exc
+    if args.random_model and args.model is not None:
+        raise ValueError("give either --model or --random-model, not both")
+    if args.random_model:
+        gen = MotionGenerator.random(seed=args.seed, device=args.device)
+    else:
+        gen = MotionGenerator.from_pretrained(args.model, device=args.device)
+    motion = gen.generate(args.text, waypoints, num_frames=args.frames, seed=args.seed, start=start)
+    out = motion.save(args.out)
+    print(f"wrote {out} ({motion.num_frames} frames, {motion.duration:.1f} s)")
+    if args.video or args.plot:
+        from motion_env.render import plot_path, render_video
+
+        if args.video:
+            print(f"wrote {render_video(motion, args.video)}")
+        if args.plot:
+            print(f"wrote {plot_path(motion, args.plot)}")
+    return 0
 
 
 def _add_bench(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("bench", help="latency and throughput of the generator and the environment")
+    p.add_argument("--model", default=None, help="weights directory (default: the shipped model)")
+    p.add_argument("--random-model", action="store_true", help="benchmark tiny UNTRAINED random weights")
+    p.add_argument("--device", default="cpu", help="torch device")
+    p.add_argument("--runs", type=int, default=10, help="timed runs of the 200-frame clip (after warm-up)")
+    p.add_argument("--frames", type=int, default=200, help="frames per clip")
+    p.add_argument("--batch-sizes", default="1,16,64", help="streaming batch sizes for throughput")
+    p.add_argument("--stream-frames", type=int, default=100, help="frames streamed per throughput run")
+    p.add_argument("--env-steps", type=int, default=1000, help="environment steps timed (0: skip the env)")
+    p.add_argument(
+        "--threads", type=int, default=1,
+        help="torch CPU threads (default 1: the models' small sequential steps run faster on one thread)",
+    )  # fmt: skip
+    p.add_argument("--json", default=None, help="also write the results to this JSON file")
     p.set_defaults(run=_run_bench)
 
 
 def _run_bench(args: argparse.Namespace) -> int:
-    raise NotImplementedError("motion-env bench is being built (issue 3)")
+    import json
+    from pathlib import Path
+
+    from motion_env.bench import format_results, run_bench
+
+    sizes = [int(v) for v in args.batch_sizes.split(",") if v.strip()]
+    results = run_bench(
+        model=args.model, random_model=args.random_model, device=args.device, runs=args.runs,
+        num_frames=args.frames, batch_sizes=sizes, stream_frames=args.stream_frames,
+        env_steps=args.env_steps, threads=args.threads,
+    )  # fmt: skip
+    print(format_results(results))
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(results, indent=2) + "\n")
+        print(f"wrote {args.json}")
+    return 0
 
 
 def _add_replay(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("replay", help="MuJoCo physical-plausibility report for a motion")
+    p = sub.add_parser(
+        "replay",
+        help="MuJoCo physical-plausibility report for a motion",
+        description="Replay a motion (.npz or BVH) on a MuJoCo humanoid and report what is physically "
+        "wrong: floor penetration, floating, foot skating, limbs through each other, joint limits, "
+        "speeds, accelerations and the root force the floor cannot supply.",
+    )
+    p.add_argument("file", help="a .npz written by Motion.save, or a .bvh / .bvh.gz file")
+    p.add_argument("--json", action="store_true", help="print the report as JSON")
+    p.add_argument("--video", default=None, help="also render the replay to this .mp4 (or .gif)")
+    p.add_argument("--mass", type=float, default=70.0, help="body mass of the humanoid in kg (default 70)")
+    p.add_argument("--track", action="store_true", help="also simulate PD tracking (reported only)")
+    p.add_argument("--thresholds", default=None, help="calibration JSON (default: the shipped one)")
     p.set_defaults(run=_run_replay)
 
 
 def _run_replay(args: argparse.Namespace) -> int:
-    raise NotImplementedError("motion-env replay is being built (issue 5)")
+    import json
+    import os
+
+    # Offscreen rendering needs this before mujoco is imported (EGL works on CPU through Mesa).
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    from motion_env.clip import load_motion
+    from motion_env.replay import evaluate_detailed, format_report
+
+    motion = load_motion(args.file)
+    if not (args.mass > 0):
+        raise ValueError(f"--mass must be a positive number of kg, got {args.mass}")
+    m, result = evaluate_detailed(motion, args.mass, args.thresholds, track=args.track)
+    if args.video:
+        from motion_env.replay.video import render_video
+
+        try:
+            result["video"] = str(render_video(m, result, args.video))
+        except RuntimeError as exc:  # no offscreen OpenGL: say so in one line
+            print(f"motion-env replay: error: {exc}", file=sys.stderr)
+            return 2
+    print(json.dumps(result, indent=2) if args.json else format_report(result, title=args.file))
+    return 0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -91,6 +333,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         # User errors (bad file, bad argument) get one readable line, not a traceback.
         print(f"motion-env {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"motion-env {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

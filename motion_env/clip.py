@@ -33,8 +33,7 @@ class Motion:
         joints = np.asarray(self.joints, dtype=np.float32)
         if joints.ndim != 3 or joints.shape[1:] != (NUM_JOINTS, 3) or joints.shape[0] < 1:
             raise ValueError(
-                f"Motion.joints must have shape (T, {NUM_JOINTS}, 3) with T >= 1, "
-                f"got {tuple(joints.shape)}"
+                f"Motion.joints must have shape (T, {NUM_JOINTS}, 3) with T >= 1, got {tuple(joints.shape)}"
             )
         if not np.isfinite(joints).all():
             bad = np.unique(np.nonzero(~np.isfinite(joints))[0])

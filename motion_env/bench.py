@@ -1,0 +1,199 @@
+"""Latency and throughput of the generator and the environment (``motion-env bench``).
+
+What is measured (PRODUCT.md's definitions):
+
+- clip latency: wall time of :meth:`MotionGenerator.generate` for a 200-frame clip with a caption
+  and timed waypoints, batch 1, after warm-up; median and 90th percentile of ``runs`` runs, each
+  with its own seed;
+- streaming throughput: frames per second summed over the batch, for :meth:`MotionGenerator.stream`
+  with B = 1, 16, 64 characters (each on its own route), after the first step (which rolls the
+  controller's look-ahead);
+- environment step: wall time of ``env.step`` of ``motion_env/Waypoints-v0`` (one frame per step),
+  median and 99th percentile over ``env_steps`` steps, the agent issuing the route target.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import time
+from typing import Any
+
+import numpy as np
+import torch
+
+BENCH_TEXT = "a person walks forward, then turns to the left"
+# Timed waypoints of the latency clip: x, z, frame index.
+BENCH_WAYPOINTS = np.array([[0.0, 2.5, 50], [2.0, 4.5, 110], [4.0, 4.5, 170]], np.float32)
+
+
+def _percentiles(values: list[float], qs: tuple[int, ...]) -> dict[str, float]:
+    arr = np.asarray(values, dtype=np.float64)
+    out = {"median": float(np.median(arr))}
+    out.update({f"p{q}": float(np.percentile(arr, q)) for q in qs})
+    out["min"] = float(arr.min())
+    out["mean"] = float(arr.mean())
+    return out
+
+
+def time_clip(generator: Any, runs: int = 10, num_frames: int = 200, warmup: int = 2) -> dict[str, float]:
+    """Latency (ms) of one clip with caption and waypoints, batch 1: median, p90, min, mean."""
+    if runs < 1:
+        raise ValueError(f"runs must be >= 1, got {runs}")
+    for i in range(warmup):
+        generator.generate(BENCH_TEXT, BENCH_WAYPOINTS, num_frames=num_frames, seed=1000 + i)
+    times = []
+    for i in range(runs):
+        t0 = time.perf_counter()
+        generator.generate(BENCH_TEXT, BENCH_WAYPOINTS, num_frames=num_frames, seed=i)
+        times.append((time.perf_counter() - t0) * 1000.0)
+    return {**_percentiles(times, (90,)), "runs": runs, "frames": num_frames}
+
+
+def _routes(batch: int) -> list[np.ndarray]:
+    """A different timed route per character (fanned out around the start)."""
+    routes = []
+    for b in range(batch):
+        angle = 2 * np.pi * b / max(batch, 1)
+        d = np.array([np.sin(angle), np.cos(angle)])
+        side = np.array([d[1], -d[0]])
+        pts = [2.5 * d, 5.0 * d + 1.5 * side, 7.5 * d]
+        routes.append(np.array([[p[0], p[1], 50 * (k + 1)] for k, p in enumerate(pts)], np.float32))
+    return routes
+
+
+def time_stream(generator: Any, batch: int, frames: int = 100) -> dict[str, float]:
+    """Streaming throughput of `batch` characters: frames/s (all characters) and ms per step()."""
+    if batch < 1 or frames < 1:
+        raise ValueError(f"batch and frames must be >= 1, got {batch} and {frames}")
+    stream = generator.stream([BENCH_TEXT] * batch, _routes(batch), seed=0)
+    t0 = time.perf_counter()
+    stream.step()  # rolls the controller's look-ahead and decodes the first token
+    first = time.perf_counter() - t0
+    times = []
+    for _ in range(frames):
+        t0 = time.perf_counter()
+        stream.step()
+        times.append(time.perf_counter() - t0)
+    total = float(np.sum(times))
+    return {
+        "batch": batch,
+        "frames": frames,
+        "frames_per_s": batch * frames / total,
+        "step_ms_median": float(np.median(times) * 1000.0),
+        "step_ms_p99": float(np.percentile(times, 99) * 1000.0),
+        "first_step_ms": first * 1000.0,
+    }
+
+
+def time_env(generator: Any, steps: int = 1000) -> dict[str, float]:
+    """Per-step latency (ms) of motion_env/Waypoints-v0 over `steps` steps: median, p99 (resets excluded)."""
+    import gymnasium as gym
+
+    import motion_env  # noqa: F401  (registers the environments)
+
+    env = gym.make("motion_env/Waypoints-v0", generator=generator)
+    options = {"text": BENCH_TEXT, "waypoints": [[0.0, 3.0], [3.0, 6.0], [6.0, 6.0], [6.0, 0.0]]}
+    _, info = env.reset(seed=0, options=options)
+    times, resets = [], 0
+    while len(times) < steps:
+        action = np.asarray(info.get("route_target", options["waypoints"][-1]), np.float32)
+        t0 = time.perf_counter()
+        _, _, terminated, truncated, info = env.step(action)
+        times.append((time.perf_counter() - t0) * 1000.0)
+        if terminated or truncated:
+            resets += 1
+            _, info = env.reset(options=options)
+    env.close()
+    return {**_percentiles(times, (90, 99)), "steps": steps, "episodes_reset": resets}
+
+
+def hardware() -> dict[str, Any]:
+    """What the numbers were measured on."""
+    info: dict[str, Any] = {
+        "cpu": platform.processor() or platform.machine(),
+        "cpu_count": os.cpu_count(),
+        "torch_threads": torch.get_num_threads(),
+        "torch": torch.__version__,
+        "python": platform.python_version(),
+    }
+    if torch.cuda.is_available():
+        info["gpu"] = torch.cuda.get_device_name(0)
+    return info
+
+
+def run_bench(
+    model: str | None = None,
+    random_model: bool = False,
+    device: str = "cpu",
+    runs: int = 10,
+    num_frames: int = 200,
+    batch_sizes: tuple[int, ...] | list[int] = (1, 16, 64),
+    stream_frames: int = 100,
+    env_steps: int = 1000,
+    threads: int | None = None,
+) -> dict[str, Any]:
+    """Every measurement of this module on one generator; a JSON-ready dict."""
+    from motion_env.generator import MotionGenerator
+
+    if threads is not None:
+        torch.set_num_threads(int(threads))
+    if random_model:
+        gen = MotionGenerator.random(device=device)
+    else:
+        gen = MotionGenerator.from_pretrained(model, device=device)
+    gen.encode_text([BENCH_TEXT])  # load the text encoder outside the timings
+    results: dict[str, Any] = {
+        "model": gen.name,
+        "untrained": gen.untrained,
+        "device": str(device),
+        "hardware": hardware(),
+        "parameters": gen.num_parameters(),
+        "clip_latency_ms": time_clip(gen, runs, num_frames),
+        "stream": [time_stream(gen, b, stream_frames) for b in batch_sizes],
+        "stream_lookahead_frames": gen.path_horizon,
+        "control_delay_frames": gen.rate,
+    }
+    if env_steps > 0:
+        try:
+            results["env_step_ms"] = time_env(gen, env_steps)
+        except ImportError as exc:  # the environment package is optional for the generator
+            results["env_step_ms"] = {"skipped": str(exc)}
+    return results
+
+
+def _row(label: str, median: float, tail: float | None, unit: str, digits: int = 1) -> str:
+    tail_text = "" if tail is None else f"{tail:.{digits}f}"
+    return f"{label:<44}{median:>10.{digits}f}{tail_text:>10}{unit:>10}"
+
+
+def format_results(results: dict[str, Any]) -> str:
+    """A plain-text table of :func:`run_bench`'s results."""
+    hw = results["hardware"]
+    head = f"model: {results['model']}{' (UNTRAINED)' if results['untrained'] else ''}"
+    head += f"   device: {results['device']}   cpu: {hw['cpu']} x{hw['cpu_count']}"
+    head += f", torch threads {hw['torch_threads']}" + (f"   gpu: {hw['gpu']}" if "gpu" in hw else "")
+    lines = [head, "", f"{'measurement':<44}{'median':>10}{'p90/p99':>10}{'unit':>10}"]
+    c = results["clip_latency_ms"]
+    lines.append(
+        _row(f"clip latency ({c['frames']} frames, batch 1, {c['runs']} runs)", c["median"], c["p90"], "ms")
+    )
+    for s in results["stream"]:
+        b = s["batch"]
+        lines.append(
+            _row(f"stream step, B={b} (mean over frames)", 1000.0 * b / s["frames_per_s"], None, "ms", 2)
+        )
+        lines.append(
+            _row(f"stream step, B={b} (median, p99)", s["step_ms_median"], s["step_ms_p99"], "ms", 2)
+        )
+        lines.append(_row(f"stream throughput, B={b}", s["frames_per_s"], None, "frames/s", 0))
+    env = results.get("env_step_ms")
+    if env and "median" in env:
+        lines.append(_row(f"env step ({env['steps']} steps, p99)", env["median"], env["p99"], "ms", 2))
+    elif env:
+        lines.append(f"env step: skipped ({env['skipped']})")
+    lines.append(
+        f"streaming: the controller runs {results['stream_lookahead_frames']} frames ahead (paid on the "
+        f"first step); a new caption/route acts within {results['control_delay_frames']} frames"
+    )
+    return "\n".join(lines)

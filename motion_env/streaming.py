@@ -1,0 +1,380 @@
+"""Streaming generation: B characters, one frame per step, steerable between frames.
+
+A :class:`MotionStream` (from :meth:`motion_env.generator.MotionGenerator.stream`) runs the
+generator's pipeline causally, one token (``rate`` frames) at a time:
+
+- Look-ahead: a token covering frames ``f .. f + rate - 1`` needs the root path up to frame
+  ``f + path_horizon`` (20 frames, one second: the long window of the path features), so the
+  path controller runs up to 20 frames (1 s) ahead of the emitted frame. The first
+  :meth:`MotionStream.step` pays for rolling it out; every later step that starts a token pays
+  for ``rate`` more controller frames.
+- Control delay: a new caption or new waypoints act from the next token on, i.e. on the frames
+  after those already decoded (at most ``rate`` frames, 0.2 s, after the call). The controller's
+  look-ahead is rolled out again from the last decoded frame, so no emitted pose moves and the
+  path does not jump.
+- Tokens are sampled one at a time with the GPT's KV cache; the VQ-VAE decodes the newest token
+  from its finite context (:meth:`motion_env.vqvae.VQVAE.decode_stream`); the recompose runs on a
+  short window of recent frames, of which only the new ones are emitted; the foot cleanup
+  (:class:`motion_env.generator.FootPinner`) is causal, frame by frame, as for whole clips.
+- Snapping is causal too: the residual to each waypoint inside the look-ahead is spread linearly
+  from the last decoded frame to the waypoint's frame.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import fields, replace
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import torch
+
+from motion_env.controller import ControllerState
+from motion_env.generator import (
+    FootPinner,
+    _check_start,
+    _check_starts,
+    _check_text,
+    _check_texts,
+    _per_row_waypoints,
+    _resolve_seed,
+    _route_anchors,
+    _row_generator,
+    _sample_rows,
+)
+from motion_env.paths import D_PATH, token_path_features, validate_waypoints
+from motion_env.skeleton import FEATURE_DIM, FOOT_CONTACT, NUM_JOINTS
+
+if TYPE_CHECKING:
+    from motion_env.generator import MotionGenerator
+
+__all__ = ["MotionStream"]
+
+# Frames of decoded body kept as left context of the recompose.
+STREAM_CONTEXT_FRAMES = 40
+
+
+# --------------------------------------------------------------------------------------------
+# Row-wise access to the controller's batched state
+# --------------------------------------------------------------------------------------------
+
+
+def _pad_waypoints(wp: torch.Tensor, k: int) -> torch.Tensor:
+    """(B, K, 3) -> (B, k, 3) by repeating the last slot (the controller's own padding)."""
+    if wp.shape[1] >= k:
+        return wp
+    return torch.cat([wp, wp[:, -1:].expand(-1, k - wp.shape[1], -1)], dim=1)
+
+
+def _take(state: ControllerState, rows: torch.Tensor) -> ControllerState:
+    return ControllerState(**{f.name: getattr(state, f.name)[rows] for f in fields(ControllerState)})
+
+
+def _put(state: ControllerState, rows: torch.Tensor, sub: ControllerState) -> ControllerState:
+    """A copy of `state` with `rows` replaced by the rows of `sub`."""
+    values = {}
+    for f in fields(ControllerState):
+        full, part = getattr(state, f.name), getattr(sub, f.name)
+        if f.name == "waypoints":
+            k = max(full.shape[1], part.shape[1])
+            full, part = _pad_waypoints(full, k), _pad_waypoints(part, k)
+        full = full.clone()
+        full[rows] = part.to(full.dtype)
+        values[f.name] = full
+    return ControllerState(**values)
+
+
+class MotionStream:
+    """B characters generated one frame per :meth:`step`, steerable between frames.
+
+    Each character's episode starts at its ``start`` (frame 0) and advances one frame per
+    :meth:`step`. Per character, the stream keeps the controller up to ``path_horizon`` frames
+    ahead of the emitted frame, the GPT's KV cache, the VQ decoder's context and a short history
+    of decoded frames (see the module docstring for the look-ahead and the control delay).
+
+    Attributes:
+        batch_size: B.
+        lookahead_frames: how far (frames) the controller runs ahead of the emitted frame at most.
+        control_delay_frames: the most frames between :meth:`set_text` / :meth:`set_waypoints`
+            and the first frame that follows the change (the rest of the decoded token).
+    """
+
+    def __init__(
+        self,
+        generator: MotionGenerator,
+        texts: Sequence[str],
+        waypoints: Any = None,
+        starts: np.ndarray | None = None,
+        seed: int | None = None,
+    ) -> None:
+        g = self._gen = generator
+        texts = _check_texts(texts)
+        b = self.batch_size = len(texts)
+        self._texts = list(texts)
+        self._routes = _per_row_waypoints(waypoints, b)
+        start_arr = _check_starts(starts, b)
+        self.seed = _resolve_seed(seed)
+        self._ctrl_gens = [_row_generator(self.seed, i, 0) for i in range(b)]
+        self._tok_gens = [_row_generator(self.seed, i, 1) for i in range(b)]
+        self._rate = rate = g.rate
+        self._horizon = g.path_horizon
+        self._context = g.vqvae.decoder_context_tokens
+        self.lookahead_frames = self._horizon
+        self.control_delay_frames = rate
+        # One ring of per-frame history, indexed by frame % R: the body context, the anchor one
+        # frame before the next token and the look-ahead all fit.
+        self._window = STREAM_CONTEXT_FRAMES
+        r = self._ring = self._window + self._horizon + 2 * rate
+        dev = g.device
+        hid = g.controller.config.hidden
+        self._h_hidden = torch.zeros(b, r, hid, device=dev)
+        self._h_pos = torch.zeros(b, r, 2, device=dev)
+        self._h_theta = torch.zeros(b, r, device=dev)
+        self._h_vel = torch.zeros(b, r, 3, device=dev)
+        self._h_queue = torch.zeros(b, r, dtype=torch.long, device=dev)
+        self._raw = np.zeros((b, r, 3), np.float32)  # controller root per frame
+        self._snapped = np.zeros((b, r, 3), np.float32)  # committed (snapped) root per frame
+        self._features = np.zeros((b, r, FEATURE_DIM), np.float32)  # decoded features per frame
+        self._feet = FootPinner(b)
+        self._emitted = np.zeros(b, np.int64)
+        self._decoded = np.zeros(b, np.int64)
+        self._dirty = np.zeros(b, bool)
+        self._route_changed = np.zeros(b, bool)
+        self._codes: list[list[int]] = [[] for _ in range(b)]
+        self._prev = torch.zeros(b, dtype=torch.long)
+        self._buffer = np.zeros((b, rate, NUM_JOINTS, 3), np.float32)
+        self._buffer_root = np.zeros((b, rate, 3), np.float32)
+        self._buffer_pos = np.full(b, rate, np.int64)  # rate = empty
+        self._root = start_arr.copy()
+
+        emb = g.encode_text(self._texts)
+        self._cache = g.gpt.new_cache(emb, g.sampling.guidance)
+        self._front = g._init_controller(emb, self._routes, start_arr, self._ctrl_gens)
+        rows = torch.arange(b, device=dev)
+        self._record(rows, self._front)
+        self._snapped[:, 0] = start_arr
+
+    # ------------------------------------------------------------------ public state
+    @property
+    def frame_index(self) -> np.ndarray:
+        """(B,) int: frames emitted so far in each character's episode."""
+        return self._emitted.copy()
+
+    @property
+    def root_state(self) -> np.ndarray:
+        """(B, 3) x, z, heading of the last emitted frame (the start before the first step)."""
+        return self._root.copy()
+
+    @property
+    def texts(self) -> list[str]:
+        """The current caption of each character."""
+        return list(self._texts)
+
+    # ------------------------------------------------------------------ steering
+    def _rows(self, index: int | None) -> np.ndarray:
+        if index is None:
+            return np.arange(self.batch_size)
+        if isinstance(index, bool) or int(index) != index or not 0 <= int(index) < self.batch_size:
+            raise IndexError(f"character index {index!r} out of range for a batch of {self.batch_size}")
+        return np.array([int(index)])
+
+    def set_text(self, text: str, index: int | None = None) -> None:
+        """Change the caption of one character (`index`) or of all (None) from the next token on."""
+        text = _check_text(text)
+        rows = self._rows(index)
+        g = self._gen
+        emb = g.encode_text([text])  # (1, D)
+        self._front = g.controller.set_text(
+            self._front, emb.expand(len(rows), -1) if index is None else emb[0], index
+        )
+        g.gpt.set_cache_text(self._cache, emb.expand(len(rows), -1), None if index is None else int(index))
+        for i in rows:
+            self._texts[i] = text
+        self._dirty[rows] = True
+
+    def set_waypoints(self, waypoints: np.ndarray | Sequence | None, index: int | None = None) -> None:
+        """Replace the route ahead of one character (`index`) or of all (None).
+
+        Args:
+            waypoints: (K, 2)/(K, 3) world x, z and optionally the frame index in that character's
+                episode; None removes the route (the character follows the caption).
+        """
+        route = None if waypoints is None else validate_waypoints(waypoints)
+        for i in self._rows(index):
+            self._routes[i] = None if route is None else route.copy()
+            self._dirty[i] = self._route_changed[i] = True
+
+    def reset(
+        self,
+        index: int,
+        text: str,
+        waypoints: np.ndarray | Sequence | None = None,
+        start: np.ndarray | Sequence[float] | None = None,
+    ) -> None:
+        """Start a new episode for one character (frame 0 at `start`); the others go on."""
+        (i,) = self._rows(index)
+        text = _check_text(text)
+        route = None if waypoints is None else validate_waypoints(waypoints)
+        start_arr = np.zeros(3, np.float32) if start is None else _check_start(start)
+        g = self._gen
+        emb = g.encode_text([text])
+        sub = g._init_controller(emb, [route], start_arr[None], [self._ctrl_gens[i]])
+        rows = torch.tensor([i], device=g.device)
+        self._front = _put(self._front, rows, sub)
+        self._record(rows, sub)
+        g.gpt.reset_cache_rows(self._cache, [int(i)], emb)
+        self._texts[i], self._routes[i] = text, route
+        self._snapped[i, 0] = start_arr
+        self._emitted[i] = self._decoded[i] = 0
+        self._dirty[i] = self._route_changed[i] = False
+        self._codes[i] = []
+        self._feet.reset(i)
+        self._prev[i] = 0
+        self._buffer_pos[i] = self._rate
+        self._root[i] = start_arr
+
+    # ------------------------------------------------------------------ emission
+    @torch.no_grad()
+    def step(self) -> np.ndarray:
+        """Emit the next frame of every character: (B, 22, 3) float32 world joints."""
+        need = np.nonzero(self._buffer_pos >= self._rate)[0]
+        if len(need):
+            self._produce(need)
+        rows = np.arange(self.batch_size)
+        out = self._buffer[rows, self._buffer_pos].copy()
+        self._root = self._buffer_root[rows, self._buffer_pos].copy()
+        self._buffer_pos += 1
+        self._emitted += 1
+        return out
+
+    # ------------------------------------------------------------------ internals
+    def _record(self, rows: torch.Tensor, state: ControllerState) -> None:
+        """Store the controller state of `rows` at their current frame in the ring."""
+        slot = (state.frame % self._ring).to(rows.device)
+        self._h_hidden[rows, slot] = state.hidden
+        self._h_pos[rows, slot] = state.pos
+        self._h_theta[rows, slot] = state.theta
+        self._h_vel[rows, slot] = state.vel
+        self._h_queue[rows, slot] = state.queue
+        r = rows.cpu().numpy()
+        self._raw[r, (state.frame % self._ring).cpu().numpy()] = state.root.cpu().numpy()
+
+    def _restore(self, i: int) -> None:
+        """Roll character i's controller back to its last decoded frame (after a caption/route change)."""
+        g = self._gen
+        anchor = max(int(self._decoded[i]) - 1, 0)
+        slot = anchor % self._ring
+        rows = torch.tensor([i], device=g.device)
+        sub = _take(self._front, rows)
+        sub = replace(
+            sub,
+            pos=self._h_pos[rows, slot].clone(),
+            theta=self._h_theta[rows, slot].clone(),
+            vel=self._h_vel[rows, slot].clone(),
+            hidden=self._h_hidden[rows, slot].clone(),
+            frame=torch.tensor([anchor], device=g.device),
+            queue=self._h_queue[rows, slot].clone(),
+        )
+        self._front = _put(self._front, rows, sub)
+        if self._route_changed[i]:
+            self._front = g.controller.set_waypoints(self._front, self._routes[i], index=int(i))
+            self._h_queue[i, slot] = self._front.queue[i]
+        self._dirty[i] = self._route_changed[i] = False
+
+    def _advance(self, rows: np.ndarray, targets: np.ndarray) -> None:
+        """Step the controller of `rows` until each reaches its target frame, recording every frame."""
+        g = self._gen
+        frames = self._front.frame.cpu().numpy()[rows]
+        need = targets - frames
+        for n in np.unique(need[need > 0]):
+            group = torch.as_tensor(rows[need == n], device=g.device)
+            sub = _take(self._front, group)
+            for _ in range(int(n)):
+                sub = g.controller.step(sub)
+                self._record(group, sub)
+            self._front = _put(self._front, group, sub)
+
+    def _snap_ahead(self, i: int, anchor: int, last: int) -> np.ndarray:
+        """Character i's root path over frames anchor..last, continuing its committed path.
+
+        The controller's path is shifted so that the anchor frame sits where it was emitted, then
+        bent through the waypoints ahead that fall inside the window: timed ones after the anchor,
+        untimed ones that the path passes within SNAP_RADIUS (:func:`_route_anchors`).
+        The residual at each is spread linearly from the previous one (the anchor: zero) and held
+        after the last. Linear rather than :func:`snap_to_waypoints`' PCHIP curve because the
+        window moves on by a token at a time: a linear share of the residual committed with each
+        token leaves the same rate for the rest, so the correction per frame stays constant.
+        """
+        frames = np.arange(anchor, last + 1)
+        raw = self._raw[i, frames % self._ring].astype(np.float64)
+        path = raw.copy()
+        path[:, :2] += self._snapped[i, anchor % self._ring, :2] - raw[0, :2]
+        route = self._routes[i]
+        if route is None:
+            return path.astype(np.float32)
+        queue = int(self._h_queue[i, anchor % self._ring])
+        anchors = _route_anchors(path, route[queue:], first=anchor, open_end=True)
+        if len(anchors):
+            keys = np.concatenate([[0.0], anchors[:, 2]])
+            res = np.concatenate([np.zeros((1, 2)), anchors[:, :2] - path[anchors[:, 2].astype(int), :2]])
+            t = np.arange(len(path))
+            path[:, 0] += np.interp(t, keys, res[:, 0])
+            path[:, 1] += np.interp(t, keys, res[:, 1])
+        return path.astype(np.float32)
+
+    def _produce(self, rows: np.ndarray) -> None:
+        """Decode the next token of each character in `rows` and fill their frame buffers."""
+        g, rate, ring, horizon = self._gen, self._rate, self._ring, self._horizon
+        for i in rows[self._dirty[rows]]:
+            self._restore(int(i))
+        first = self._decoded[rows]  # (N,) first frame of the new token
+        self._advance(rows, first + horizon)
+
+        # Root path: committed up to the anchor, snapped look-ahead beyond it.
+        ahead: list[np.ndarray] = []
+        path_feat = torch.zeros(self.batch_size, D_PATH)
+        for n, i in enumerate(rows):
+            f = int(first[n])
+            anchor = max(f - 1, 0)
+            window = self._snap_ahead(int(i), anchor, f + horizon)[f - anchor :]  # frames f..f+horizon
+            ahead.append(window)
+            path_feat[i] = torch.from_numpy(token_path_features(window, rate)[0])
+
+        # One GPT step for the whole batch; characters that are mid-token take no step: their
+        # new cache entry is masked out and their position rewound.
+        logits, self._cache = g.gpt.step(self._cache, self._prev.to(g.device), path_feat.to(g.device))
+        if len(rows) < self.batch_size:
+            idle = np.setdiff1d(np.arange(self.batch_size), rows)
+            if self._cache.guidance != 1.0:
+                idle = np.concatenate([idle, idle + self.batch_size])
+            idle_t = torch.as_tensor(idle, device=self._cache.valid.device)
+            self._cache.valid[idle_t, -1] = False
+            self._cache.pos[idle_t] -= 1
+        rows_t = torch.as_tensor(rows, device=logits.device)
+        tokens = _sample_rows(logits[rows_t], [self._tok_gens[i] for i in rows], g.sampling)
+        self._prev[torch.as_tensor(rows)] = tokens
+        for n, i in enumerate(rows):
+            self._codes[i] = (self._codes[i] + [int(tokens[n])])[-self._context :]
+
+        # Decode the newest token of each character from its recent tokens (grouped by length).
+        body = np.zeros((len(rows), rate, FEATURE_DIM), np.float32)
+        lengths = np.array([len(self._codes[i]) for i in rows])
+        for length in np.unique(lengths):
+            sel = np.nonzero(lengths == length)[0]
+            codes = torch.tensor([self._codes[rows[s]] for s in sel], device=g.device)
+            body[sel] = g._denormalise(g.vqvae.decode_stream(codes))
+
+        for n, i in enumerate(rows):
+            f = int(first[n])
+            frames = np.arange(f, f + rate)
+            self._features[i, frames % ring] = body[n]
+            begin = max(0, f + rate - self._window)
+            past = np.arange(begin, f)
+            feats = self._features[i, np.arange(begin, f + rate) % ring]
+            root = np.concatenate([self._snapped[i, past % ring], ahead[n]])  # frames begin..f+horizon
+            joints, path = g._compose(feats, root, f + rate - begin)
+            self._snapped[i, frames % ring] = ahead[n][:rate]
+            self._buffer[i] = self._feet.apply(int(i), joints[-rate:], body[n][:, FOOT_CONTACT])
+            self._buffer_root[i] = path[-rate:]
+        self._decoded[rows] += rate
+        self._buffer_pos[rows] = 0
