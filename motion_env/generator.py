@@ -43,7 +43,7 @@ from motion_env.gpt import GPTConfig, TokenGPT
 from motion_env.paths import LOOKAHEAD_FRAMES, token_path_features, validate_waypoints
 from motion_env.recompose import (
     LEGS,
-    _two_bone_ik,
+    two_bone_ik,
     align_heading_to_travel,
     local_pose_from_features,
     recompose,
@@ -358,7 +358,7 @@ class FootPinner:
                 continue
             goal = out[moved, ankle].copy()
             goal[:, [0, 2]] += offsets[moved]
-            new_knee, new_ankle = _two_bone_ik(out[moved, hip], out[moved, knee], out[moved, ankle], goal)
+            new_knee, new_ankle = two_bone_ik(out[moved, hip], out[moved, knee], out[moved, ankle], goal)
             out[moved, toe] += new_ankle - out[moved, ankle]
             out[moved, knee], out[moved, ankle] = new_knee, new_ankle
         return out.astype(np.float32)

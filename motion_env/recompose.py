@@ -271,7 +271,7 @@ def _pinned(xz: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return out
 
 
-def _two_bone_ik(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, target: np.ndarray) -> tuple:
+def two_bone_ik(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, target: np.ndarray) -> tuple:
     """Analytic two-bone IK per frame: hip fixed, bone lengths kept, knee in the plane of the
     hip, the target and the original knee. All (N, 3); returns (new knee, new ankle)."""
     l1 = np.linalg.norm(knee - hip, axis=-1)
@@ -342,7 +342,7 @@ def clean_foot_contacts(joints: np.ndarray, contacts: np.ndarray | None = None, 
         offset = offset[nearest] * weight[:, None]
         goal = joints[:, ankle].copy()
         goal[:, [0, 2]] += offset
-        new_knee, new_ankle = _two_bone_ik(joints[:, hip], joints[:, knee], joints[:, ankle], goal)
+        new_knee, new_ankle = two_bone_ik(joints[:, hip], joints[:, knee], joints[:, ankle], goal)
         out[:, knee] = new_knee
         out[:, toe] = joints[:, toe] + (new_ankle - joints[:, ankle])
         out[:, ankle] = new_ankle
