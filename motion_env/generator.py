@@ -43,11 +43,11 @@ from motion_env.gpt import GPTConfig, TokenGPT
 from motion_env.paths import LOOKAHEAD_FRAMES, token_path_features, validate_waypoints
 from motion_env.recompose import (
     LEGS,
-    two_bone_ik,
     align_heading_to_travel,
     local_pose_from_features,
     recompose,
     snap_to_waypoints,
+    two_bone_ik,
 )
 from motion_env.skeleton import FEATURE_DIM, FOOT_CONTACT, FPS, NUM_JOINTS
 from motion_env.vqvae import VQVAE, VQVAEConfig
