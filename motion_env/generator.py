@@ -294,7 +294,7 @@ def _training_record(ckpt: dict[str, Any]) -> dict[str, Any]:
 FOOT_BLEND = 3
 # The largest correction (m) a pinned foot gets; a foot the body drags farther (its stride does
 # not match the path's speed) slides along with it, so the leg never snaps back from afar.
-FOOT_MAX_OFFSET = 0.5
+FOOT_MAX_OFFSET = 0.25
 
 
 class FootPinner:
