@@ -689,21 +689,14 @@ class MotionGenerator:
         Returns:
             B :class:`Motion` clips of `num_frames` frames.
         """
-        texts = _check_texts(texts)
+        texts, routes, start_arr, num_frames, seed = self._check_request(
+            texts, waypoints, num_frames, seed, starts
+        )
         b = len(texts)
-        routes = _per_row_waypoints(waypoints, b)
-        start_arr = _check_starts(starts, b)
-        num_frames = _check_num_frames(num_frames)
-        seed = _resolve_seed(seed)
         rate = self.rate
         n_tok = math.ceil(num_frames / rate)
-        # The path reaches one horizon past the last token's first frame, as in streaming, so
-        # the last tokens' path features are never cut short.
-        n_path = (n_tok - 1) * rate + self.path_horizon + 1
-
         emb = self.encode_text(texts)
-        roots = self._rollout(emb, routes, start_arr, n_path, seed)
-        paths = [_snap(roots[i], routes[i]) for i in range(b)]
+        paths = self._paths(emb, routes, start_arr, num_frames, seed)
 
         feats = torch.from_numpy(np.stack([token_path_features(p, rate)[:n_tok] for p in paths])).to(
             self.device
@@ -732,6 +725,35 @@ class MotionGenerator:
                 )  # fmt: skip
             )
         return motions
+
+    def _check_request(
+        self, texts: Sequence[str], waypoints: Any, num_frames: Any, seed: int | None, starts: Any
+    ) -> tuple[list[str], list[np.ndarray | None], np.ndarray, int, int]:
+        """Validated (texts, per-row routes, (B, 3) starts, num_frames, seed) of a batch request."""
+        texts = _check_texts(texts)
+        routes = _per_row_waypoints(waypoints, len(texts))
+        starts_arr = _check_starts(starts, len(texts))
+        return texts, routes, starts_arr, _check_num_frames(num_frames), _resolve_seed(seed)
+
+    def _paths(
+        self,
+        emb: torch.Tensor,
+        routes: list[np.ndarray | None],
+        starts: np.ndarray,
+        num_frames: int,
+        seed: int,
+        snap: bool = True,
+    ) -> np.ndarray:
+        """Root paths (B, n_path, 3) for clips of `num_frames`, bent through the routes if `snap`.
+
+        The path reaches one horizon past the last token's first frame, as in streaming, so the
+        last tokens' path features are never cut short.
+        """
+        n_path = (math.ceil(num_frames / self.rate) - 1) * self.rate + self.path_horizon + 1
+        roots = self._rollout(emb, routes, starts, n_path, seed)
+        if snap:
+            roots = np.stack([_snap(r, w) for r, w in zip(roots, routes, strict=True)])
+        return roots
 
     def _rollout(
         self,
@@ -767,18 +789,10 @@ class MotionGenerator:
             (B, num_frames, 3) float32 x, z, heading (before the heading is turned to the
             direction of travel).
         """
-        texts = _check_texts(texts)
-        routes = _per_row_waypoints(waypoints, len(texts))
-        start_arr = _check_starts(starts, len(texts))
-        num_frames = _check_num_frames(num_frames)
-        seed = _resolve_seed(seed)
-        n_tok = math.ceil(num_frames / self.rate)
-        roots = self._rollout(
-            self.encode_text(texts), routes, start_arr, (n_tok - 1) * self.rate + self.path_horizon + 1, seed
+        texts, routes, start_arr, num_frames, seed = self._check_request(
+            texts, waypoints, num_frames, seed, starts
         )
-        if snap:
-            roots = np.stack([_snap(r, w) for r, w in zip(roots, routes, strict=True)])
-        return roots[:, :num_frames]
+        return self._paths(self.encode_text(texts), routes, start_arr, num_frames, seed, snap)[:, :num_frames]
 
     def _meta(self, seed: int, row: int) -> dict[str, str]:
         meta = {

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -57,6 +58,31 @@ def _stats(data_dir: Path) -> tuple[np.ndarray, np.ndarray]:
 
     mean, std = load_stats(data_dir)
     return np.asarray(mean, np.float32), np.asarray(std, np.float32)
+
+
+def _end_of_step(
+    kind: str,
+    bar: tqdm,
+    step: int,
+    steps: int,
+    last: dict[str, float],
+    done: int,
+    t0: float,
+    save: Callable[[int, dict[str, float]], None],
+    log_every: int,
+    save_every: int,
+    max_minutes: float | None,
+) -> bool:
+    """Log, checkpoint and check the time limit after (0-based) `step`; True means stop now."""
+    if (step + 1) % log_every == 0:
+        terms = " ".join(f"{name} {value:.4f}" for name, value in last.items())
+        bar.write(f"{kind} step {step + 1}/{steps} {terms} {(time.perf_counter() - t0) / done:.3f} s/step")
+    timed_out = max_minutes is not None and time.perf_counter() - t0 > max_minutes * 60
+    if (step + 1) % save_every == 0 or step + 1 == steps or timed_out:
+        save(step + 1, last)
+    if timed_out:
+        bar.write(f"{kind}: stopping at step {step + 1} after {max_minutes} minutes")
+    return timed_out
 
 
 def _resume_state(out_path: Path, kind: str, config: Any, resume: bool) -> dict[str, Any] | None:
@@ -204,17 +230,7 @@ def train_vqvae(
         last = {k: float(v.detach()) for k, v in losses.items()}
         bar.update(1)
         bar.set_postfix(loss=f"{last['loss']:.4f}", ppl=f"{last['perplexity']:.0f}", refresh=False)
-        if (step + 1) % log_every == 0:
-            bar.write(
-                f"vqvae step {step + 1}/{steps} loss {last['loss']:.4f} recon {last['recon']:.4f} "
-                f"vel {last['velocity']:.4f} commit {last['commit']:.4f} ppl {last['perplexity']:.1f} "
-                f"{(time.perf_counter() - t0) / done:.3f} s/step"
-            )
-        timed_out = max_minutes is not None and time.perf_counter() - t0 > max_minutes * 60
-        if (step + 1) % save_every == 0 or step + 1 == steps or timed_out:
-            save(step + 1, last)
-        if timed_out:
-            bar.write(f"vqvae: stopping at step {step + 1} after {max_minutes} minutes")
+        if _end_of_step("vqvae", bar, step, steps, last, done, t0, save, log_every, save_every, max_minutes):
             break
     bar.close()
     final_step = start + done
@@ -447,16 +463,7 @@ def train_gpt(
         last = {"loss": float(loss.detach())}
         bar.update(1)
         bar.set_postfix(loss=f"{last['loss']:.3f}", refresh=False)
-        if (step + 1) % log_every == 0:
-            bar.write(
-                f"gpt step {step + 1}/{steps} loss {last['loss']:.4f} "
-                f"{(time.perf_counter() - t0) / done:.3f} s/step"
-            )
-        timed_out = max_minutes is not None and time.perf_counter() - t0 > max_minutes * 60
-        if (step + 1) % save_every == 0 or step + 1 == steps or timed_out:
-            save(step + 1, last)
-        if timed_out:
-            bar.write(f"gpt: stopping at step {step + 1} after {max_minutes} minutes")
+        if _end_of_step("gpt", bar, step, steps, last, done, t0, save, log_every, save_every, max_minutes):
             break
     bar.close()
     final_step = start + done
