@@ -27,7 +27,9 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-DEFAULT_NUM_CAPTIONS = 6
+# Twelve: a text-conditioned model generalises to new wordings only when each motion is seen
+# under many (HumanML3D has three human-written ones per clip; ours are drawn from phrase lists).
+DEFAULT_NUM_CAPTIONS = 12
 
 # --------------------------------------------------------------------------------------------
 # Verbs: conjugation of phrases written in base form with "^" before each verb to inflect.
@@ -100,6 +102,13 @@ BANDAI_CONTENTS: dict[str, tuple[str, ...]] = {
         "^walk straight ahead",
         "^walk in a straight line",
         "^take a few steps forward",
+        "^stroll forward",
+        "^walk at a steady pace",
+        "^walk along at a normal pace",
+        "^go forward at a walking pace",
+        "^move ahead step by step",
+        "^walk a short distance forward",
+        "^walk onward",
     ),
     "walk-turn-left": (
         "^walk and ^turn left",
@@ -108,14 +117,42 @@ BANDAI_CONTENTS: dict[str, tuple[str, ...]] = {
         "^walk forward and then ^turn left",
         "^make a left turn while walking",
         "^walk along a path that curves to the left",
+        "^turn left while walking",
+        "^walk in an arc to the left",
+        "^walk, then ^change direction to the left",
+        "^walk and ^swing around to the left",
     ),
-    "run": ("^run", "^run forward", "^run straight ahead", "^jog forward", "^run in a straight line"),
+    "run": (
+        "^run",
+        "^run forward",
+        "^run straight ahead",
+        "^jog forward",
+        "^run in a straight line",
+        "^run fast",
+        "^run quickly",
+        "^break into a run",
+        "^run along",
+        "^go forward at a run",
+        "^jog along",
+        "^run at a fast pace",
+        "^run ahead",
+        "^trot forward quickly",
+        "^move forward at a running pace",
+    ),
     "dash": (
         "^sprint",
         "^dash forward",
         "^sprint forward",
         "^run very fast",
         "^rush forward at full speed",
+        "^run at the fastest pace possible",
+        "^sprint ahead",
+        "^dash ahead at maximum speed",
+        "^charge forward at high speed",
+        "^sprint flat out",
+        "^take off at a sprint",
+        "^speed forward very quickly",
+        "^run forward extremely fast",
     ),
     "walk-back": (
         "^walk backward",
@@ -123,6 +160,10 @@ BANDAI_CONTENTS: dict[str, tuple[str, ...]] = {
         "^step backward",
         "^walk in reverse",
         "^back up step by step",
+        "^retreat backward",
+        "^take steps backward",
+        "^move backward step by step",
+        "^walk backward carefully",
     ),
     "walk-left": (
         "^walk diagonally forward to the left",
@@ -130,6 +171,8 @@ BANDAI_CONTENTS: dict[str, tuple[str, ...]] = {
         "^walk forward while drifting to the left",
         "^walk at an angle toward the left",
         "^walk ahead, bearing left",
+        "^walk toward the front left",
+        "^walk forward at a slant to the left",
     ),
     "wave-both-hands": (
         "^wave both hands",
@@ -137,6 +180,11 @@ BANDAI_CONTENTS: dict[str, tuple[str, ...]] = {
         "^raise both hands and ^wave",
         "^wave both arms",
         "^wave hello with both hands",
+        "^wave hi with both hands",
+        "^wave both hands in the air",
+        "^say hello waving both hands",
+        "^wave to someone with both arms",
+        "^hold up both hands and ^wave them",
     ),
     "wave-left-hand": (
         "^wave the left hand",
@@ -144,6 +192,14 @@ BANDAI_CONTENTS: dict[str, tuple[str, ...]] = {
         "^raise the left hand and ^wave",
         "^wave the left arm",
         "^wave hello with the left hand",
+        "^wave hello using the left hand",
+        "^say hello with the left hand",
+        "^give a wave with the left hand",
+        "^lift the left hand and ^wave it back and forth",
+        "^wave to someone with the left hand",
+        "^wave the left hand from side to side",
+        "^hold up the left hand and ^wave",
+        "^use the left hand to wave hi",
     ),
     "raise-up-both-hands": (
         "^raise both hands",
@@ -151,6 +207,10 @@ BANDAI_CONTENTS: dict[str, tuple[str, ...]] = {
         "^lift both hands above the head",
         "^put both hands up",
         "^hold both arms up in the air",
+        "^raise both arms high in the air",
+        "^throw both hands up",
+        "^stretch both arms up high",
+        "^reach up with both hands",
     ),
     "raise-up-left-hand": (
         "^raise the left hand",
@@ -158,6 +218,11 @@ BANDAI_CONTENTS: dict[str, tuple[str, ...]] = {
         "^lift the left hand above the head",
         "^put the left hand up",
         "^hold the left arm up in the air",
+        "^raise the left arm high",
+        "^stick the left hand up",
+        "^reach the left hand up high",
+        "^lift the left arm up high",
+        "^put up the left hand",
     ),
     "bow": ("^bow", "^bow politely", "^bend forward in a bow", "^take a bow", "^bow at the waist"),
     "bye": (
@@ -166,6 +231,10 @@ BANDAI_CONTENTS: dict[str, tuple[str, ...]] = {
         "^say bye with a wave of the hand",
         "^wave farewell with the right hand",
         "^lift a hand to wave bye",
+        "^wave goodbye with the right hand",
+        "^say goodbye by waving the right hand",
+        "^wave bye with the right hand",
+        "^wave the right hand to say goodbye",
     ),
     "byebye": (
         "^wave goodbye with both hands",
@@ -173,6 +242,8 @@ BANDAI_CONTENTS: dict[str, tuple[str, ...]] = {
         "^raise both hands and ^wave goodbye",
         "^wave farewell with both arms",
         "^keep waving both hands to say goodbye",
+        "^say goodbye waving both hands",
+        "^wave both arms to say bye",
     ),
     "guide": (
         "^gesture to show the way",
@@ -187,6 +258,8 @@ BANDAI_CONTENTS: dict[str, tuple[str, ...]] = {
         "^answer by putting the left hand up",
         "^lift the left hand above the head in response",
         "^raise a hand high to answer",
+        "^put the left hand up to answer",
+        "^answer with the left hand raised",
     ),
     "call": (
         "^beckon someone over",
@@ -344,7 +417,11 @@ BANDAI_STYLES: dict[str, Style] = {
     ),
 }
 
-_PEOPLE = ("a person", "someone", "the person", "a human", "a figure", "somebody")
+_PEOPLE = (
+    "a person", "someone", "the person", "a human", "a figure", "somebody", "a man", "a woman", "the man",
+    "the woman", "a performer",
+)  # fmt: skip
+_NOUNS = ("person", "person", "man", "woman")  # "an exhausted <noun>"
 _POSTPOSITIVE_PEOPLE = ("someone", "somebody")  # "someone worn out walks"
 
 
@@ -402,12 +479,14 @@ def captions_for_bandai(
     templates: list[Callable[[], str]] = []
     if sty.adjectives:
         templates += [
-            lambda: f"{_with_article(rng.choice(sty.adjectives))} {vp()}",
+            lambda: f"{_with_article(rng.choice(sty.adjectives), rng.choice(_NOUNS))} {vp()}",
+            lambda: f"{rng.choice(sty.adjectives)}, {subject()} {vp()}",
+            lambda: f"{subject()} {vp()}, looking {rng.choice(sty.adjectives)}",
             lambda: f"{rng.choice(_POSTPOSITIVE_PEOPLE)} {rng.choice(sty.adjectives)} {vp()}",
             lambda: (
                 f"{subject()} who {rng.choice(('is', 'looks', 'seems'))} {rng.choice(sty.adjectives)} {vp()}"
             ),
-            lambda: f"{_with_article(rng.choice(sty.adjectives))} {vp_gerund()}",
+            lambda: f"{_with_article(rng.choice(sty.adjectives), rng.choice(_NOUNS))} {vp_gerund()}",
             lambda: f"looking {rng.choice(sty.adjectives)}, {subject()} {vp()}",
         ]
     if sty.adverbs:
@@ -420,7 +499,11 @@ def captions_for_bandai(
     if sty.subjects:
         templates.append(lambda: f"{rng.choice(sty.subjects)} {vp()}")
     if sty.neutral:
-        plain = [lambda: f"{subject()} {vp()}", lambda: f"{subject()} is {vp_gerund()}"]
+        plain = [
+            lambda: f"{subject()} {vp()}",
+            lambda: f"{subject()} is {vp_gerund()}",
+            lambda: f"{subject()} can be seen {vp_gerund()}",
+        ]
         # Half of a neutral style's captions say nothing about style.
         templates = plain * max(1, len(templates)) + templates
     return _draw(rng, templates, n)

@@ -11,6 +11,8 @@ import argparse
 import sys
 from collections.abc import Sequence
 
+from motion_env.captions import DEFAULT_NUM_CAPTIONS
+
 
 def _add_show(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("show", help="draw a motion (.npz or BVH) as a stick-figure video and a path plot")
@@ -73,7 +75,12 @@ def _add_data(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--out", required=True, help="output directory (must be empty or not exist)")
     b.add_argument("--workers", type=int, default=2, help="import processes (default: 2)")
     b.add_argument("--no-mirror", action="store_true", help="do not add mirrored copies of the takes")
-    b.add_argument("--captions", type=int, default=6, help="captions per clip (default: 6)")
+    b.add_argument(
+        "--captions",
+        type=int,
+        default=DEFAULT_NUM_CAPTIONS,
+        help=f"captions per clip (default: {DEFAULT_NUM_CAPTIONS})",
+    )
     b.add_argument("--seed", type=int, default=0, help="seed of the caption wording (default: 0)")
     b.add_argument(
         "--min-seconds", type=float, default=1.0, help="skip takes shorter than this (default: 1.0)"

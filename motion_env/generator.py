@@ -13,8 +13,9 @@ The one place that wires the parts together (C-T2M's decoupled pipeline):
 5. the VQ-VAE (:mod:`motion_env.vqvae`) decodes the tokens into normalised 263-d features, which
    are denormalised with the training set's Mean/Std;
 6. the decoded body, relative to its root, is recomposed onto the root path
-   (:mod:`motion_env.recompose`) and the feet are pinned where the decoder says they are in
-   contact (:class:`FootPinner`).
+   (:mod:`motion_env.recompose`), rebuilt on the skeleton's fixed bone lengths
+   (:func:`motion_env.motion.with_bone_lengths`: decoded bones stretch by up to 10 %), and the feet
+   are pinned where the decoder says they are in contact (:class:`FootPinner`).
 
 Streaming (:class:`motion_env.streaming.MotionStream`, from :meth:`MotionGenerator.stream`) runs
 the same steps causally, one token at a time; see :mod:`motion_env.streaming`.
@@ -40,6 +41,7 @@ from motion_env.checkpoint import check_text_encoder, load_checkpoint, save_chec
 from motion_env.clip import Motion
 from motion_env.controller import ControllerConfig, ControllerState, PathController
 from motion_env.gpt import GPTConfig, TokenGPT
+from motion_env.motion import with_bone_lengths
 from motion_env.paths import LOOKAHEAD_FRAMES, token_path_features, validate_waypoints
 from motion_env.recompose import (
     LEGS,
@@ -358,7 +360,10 @@ class FootPinner:
                 continue
             goal = out[moved, ankle].copy()
             goal[:, [0, 2]] += offsets[moved]
-            new_knee, new_ankle = two_bone_ik(out[moved, hip], out[moved, knee], out[moved, ankle], goal)
+            toes = out[moved, toe] - out[moved, ankle]
+            toes[:, 1] = 0.0  # a knee points the way the foot does
+            leg = out[moved, hip], out[moved, knee], out[moved, ankle]
+            new_knee, new_ankle = two_bone_ik(*leg, goal, toes)
             out[moved, toe] += new_ankle - out[moved, ankle]
             out[moved, knee], out[moved, ankle] = new_knee, new_ankle
         return out.astype(np.float32)
@@ -634,8 +639,8 @@ class MotionGenerator:
         if root_path.shape[0] > n:
             local = np.concatenate([local, np.repeat(local[-1:], root_path.shape[0] - n, axis=0)])
         path = align_heading_to_travel(root_path)
-        joints = recompose(local, path, face_travel=False)
-        return joints[:num_frames], path[:num_frames]
+        joints = with_bone_lengths(recompose(local, path, face_travel=False)[:num_frames])
+        return joints, path[:num_frames]
 
     # ------------------------------------------------------------------ whole clips
     @torch.no_grad()

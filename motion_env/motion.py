@@ -446,6 +446,30 @@ def retarget(joints: np.ndarray, lengths: np.ndarray = BONE_LENGTHS) -> np.ndarr
     return out
 
 
+def with_bone_lengths(joints: np.ndarray, lengths: np.ndarray = BONE_LENGTHS) -> np.ndarray:
+    """Rebuild every frame from the pelvis outward with `lengths`, keeping each bone's direction.
+
+    Unlike :func:`retarget` the pelvis trajectory is not scaled: each frame is only shifted up or
+    down so that its lowest foot joint stays at the height it had. A decoder's bones stretch and
+    shrink a little from frame to frame (a leg 9 cm short puts a rigid body's foot 9 cm into the
+    floor); on fixed lengths every frame is a pose of one body. Per frame, so streaming-safe.
+
+    joints: (T, 22, 3); lengths: (22,). Returns (T, 22, 3) float32.
+    """
+    joints = _check_joints(joints)
+    lengths = np.asarray(lengths, dtype=np.float64)
+    if lengths.shape != (NUM_JOINTS,):
+        raise ValueError(f"lengths must have shape ({NUM_JOINTS},), got {lengths.shape}")
+    dirs = _bone_directions(joints)
+    out = np.zeros_like(joints)
+    out[:, 0] = joints[:, 0]
+    for j in range(1, NUM_JOINTS):
+        out[:, j] = out[:, PARENTS[j]] + dirs[:, j] * lengths[j]
+    feet = list(FOOT_JOINTS)
+    out[..., 1] += (joints[:, feet, 1].min(axis=1) - out[:, feet, 1].min(axis=1))[:, None]
+    return out.astype(np.float32)
+
+
 def floor_height(joints: np.ndarray, percentile: float = 3.0) -> float:
     """Robust floor level of a clip: a low percentile over frames of the lowest foot joint.
 

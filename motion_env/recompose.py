@@ -271,18 +271,37 @@ def _pinned(xz: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return out
 
 
-def two_bone_ik(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, target: np.ndarray) -> tuple:
-    """Analytic two-bone IK per frame: hip fixed, bone lengths kept, knee in the plane of the
-    hip, the target and the original knee. All (N, 3); returns (new knee, new ankle)."""
+def two_bone_ik(
+    hip: np.ndarray,
+    knee: np.ndarray,
+    ankle: np.ndarray,
+    target: np.ndarray,
+    bend_hint: np.ndarray | None = None,
+) -> tuple:
+    """Analytic two-bone IK per frame: hip fixed, bone lengths kept, the ankle moved to the target.
+
+    The knee keeps the side it bent to, measured against the leg's *original* hip-ankle axis:
+    measured against the new axis, a nearly straight leg's bend direction is noise, and the knee
+    can flip backwards or sideways (hip twists of 90 degrees on runs). An optional `bend_hint`
+    (e.g. the direction the toes point) adds a 5 cm bias, so a straight leg bends that way.
+
+    All (N, 3); returns (new knee, new ankle).
+    """
     l1 = np.linalg.norm(knee - hip, axis=-1)
     l2 = np.linalg.norm(ankle - knee, axis=-1)
     to = target - hip
     d = np.linalg.norm(to, axis=-1)
     d_clamped = np.clip(d, np.abs(l1 - l2) + 1e-4, l1 + l2 - 1e-4)
     u = to / np.maximum(d, 1e-9)[:, None]
-    pole = (knee - hip) - ((knee - hip) * u).sum(-1, keepdims=True) * u
+    leg = ankle - hip
+    axis0 = leg / np.maximum(np.linalg.norm(leg, axis=-1, keepdims=True), 1e-9)
+    bend = (knee - hip) - ((knee - hip) * axis0).sum(-1, keepdims=True) * axis0
+    if bend_hint is not None:
+        hint_n = np.linalg.norm(bend_hint, axis=-1, keepdims=True)
+        bend = bend + 0.05 * bend_hint / np.maximum(hint_n, 1e-9)
+    pole = bend - (bend * u).sum(-1, keepdims=True) * u
     pole_n = np.linalg.norm(pole, axis=-1, keepdims=True)
-    # A straight leg has no bend plane: bend the knee forward (+ the original shin direction).
+    # A straight leg with no hint has no bend plane: bend the knee along the original shin.
     fallback = (ankle - knee) - ((ankle - knee) * u).sum(-1, keepdims=True) * u
     pole = np.where(pole_n > 1e-6, pole / np.maximum(pole_n, 1e-9), fallback)
     pole = pole / np.maximum(np.linalg.norm(pole, axis=-1, keepdims=True), 1e-9)

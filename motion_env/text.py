@@ -13,11 +13,13 @@ checkpoints; a checkpoint records only ``{"name", "dim"}`` of the encoder it was
 from __future__ import annotations
 
 import importlib.util
+import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 
 
@@ -164,3 +166,18 @@ def load_text_encoder(
             raise ValueError("the clip encoder needs weights=<local open_clip ViT-B-32 checkpoint file>")
         return ClipTextEncoder(weights, device)
     raise ValueError(f"unknown text encoder {name!r}; choose 'minilm' or 'clip'")
+
+
+def jitter_embeddings(emb: torch.Tensor, scale: float, rng: np.random.Generator) -> torch.Tensor:
+    """Training augmentation: add Gaussian noise of expected norm `scale` to unit-norm embeddings.
+
+    A model conditioned on a few thousand template captions otherwise answers only at those
+    points of the embedding space; new wordings land between them. The noise teaches it to
+    answer smoothly around every caption (0.3 keeps a cosine of about 0.96 to the original).
+    """
+    if not (np.isfinite(scale) and scale >= 0):
+        raise ValueError(f"text noise scale must be a finite number >= 0, got {scale!r}")
+    if scale == 0:
+        return emb
+    noise = rng.standard_normal(tuple(emb.shape)).astype(np.float32) * (scale / math.sqrt(emb.shape[-1]))
+    return emb + torch.from_numpy(noise).to(emb.device, emb.dtype)

@@ -370,6 +370,7 @@ def train_gpt(
     seed: int = 0,
     max_minutes: float | None = None,
     text_encoder: Any = None,
+    text_noise: float = 0.3,
 ) -> dict[str, float]:
     """Train the token GPT on the train clips, tokenised by the VQ-VAE at `vqvae_path`.
 
@@ -385,12 +386,14 @@ def train_gpt(
         start_crop: share of crops forced to start at the clip's first token (the START slot).
         device, resume, log_every, save_every, seed, max_minutes: as in :func:`train_vqvae`.
         text_encoder: a :class:`motion_env.text.TextEncoder` (default: MiniLM).
+        text_noise: expected norm of the noise added to caption embeddings
+            (:func:`motion_env.text.jitter_embeddings`; 0 turns it off).
 
     Returns:
         final metrics: "step", "loss", "seconds_per_step", "val_accuracy", "val_perplexity",
         "train_accuracy", "train_perplexity" (the last two on the train clips, for comparison).
     """
-    from motion_env.text import load_text_encoder
+    from motion_env.text import jitter_embeddings, load_text_encoder
 
     data_dir, out_path = Path(data_dir), Path(out_path)
     vq, vq_ckpt = load_checkpoint(vqvae_path, "vqvae", VQVAEConfig, VQVAE, device)
@@ -449,6 +452,7 @@ def train_gpt(
         prev, path, targets, text = _gpt_batch(
             train, idx, starts, length, config.start_token, table, caption_row, rng.random(batch_size)
         )
+        text = jitter_embeddings(text, text_noise, rng)
         drop = torch.from_numpy(rng.random(batch_size) < text_drop)
         for group in opt.param_groups:
             group["lr"] = _lr_at(step, steps, lr, warmup=min(100, steps // 10 + 1))

@@ -28,6 +28,7 @@ from tqdm import tqdm
 from motion_env.controller import ControllerConfig, PathController, to_heading_frame_torch
 from motion_env.paths import root_path_from_joints, waypoint_errors
 from motion_env.skeleton import FPS
+from motion_env.text import jitter_embeddings
 
 CHECKPOINT_KIND = "controller"
 # A frame is "still" below this root speed (m/s): its turn target is zero (no spin on the spot).
@@ -135,8 +136,13 @@ def _sample_waypoints(
     return wp.astype(np.float32), frames.astype(np.int64)
 
 
-def sample_batch(data: PathData, rng: np.random.Generator, batch_size: int, window: int) -> Batch:
-    """Draw B windows with their waypoints (see the module docstring)."""
+def sample_batch(
+    data: PathData, rng: np.random.Generator, batch_size: int, window: int, text_noise: float = 0.0
+) -> Batch:
+    """Draw B windows with their waypoints (see the module docstring).
+
+    `text_noise` jitters the caption embeddings (:func:`motion_env.text.jitter_embeddings`).
+    """
     lengths = np.array([len(p) for p in data.paths], dtype=np.float64)
     probs = lengths / lengths.sum()
     names, weights = list(MODES), np.array(list(MODES.values()))
@@ -165,7 +171,7 @@ def sample_batch(data: PathData, rng: np.random.Generator, batch_size: int, wind
         wpw.append(w)
         free.append(wp is None)
     return Batch(
-        text=torch.from_numpy(np.stack(text)),
+        text=jitter_embeddings(torch.from_numpy(np.stack(text)), text_noise, rng),
         start=torch.from_numpy(np.stack(start)),
         target=torch.from_numpy(np.stack(target)),
         mask=torch.from_numpy(np.stack(mask)),
@@ -210,14 +216,22 @@ def controller_loss(
     head_err = torch.remainder(roots[..., 2] - target[..., 2] + math.pi, 2 * math.pi) - math.pi
     loss_head = (head_err.abs() * mask).sum() / mask.sum().clamp(min=1.0)
     loss_smooth = ((turn_p[:, 1:] - turn_p[:, :-1]).abs() * step_mask[:, 1:]).sum() / msum
+    # Accelerations like the real path's: without this the controller brakes and surges around
+    # timed waypoints to hit their frames (35 m/s^2 dips at 3 m/s), forces no body can make.
+    acc_err = ((vel_p[:, 1:] - vel_p[:, :-1]) - (vel_t[:, 1:] - vel_t[:, :-1])).abs().sum(-1)
+    loss_acc = (acc_err * step_mask[:, 1:]).sum() / msum
 
-    loss = loss_pos + 2.0 * loss_wp + 0.5 * loss_vel + 0.3 * loss_turn + 0.5 * loss_head + 0.1 * loss_smooth
+    loss = (
+        loss_pos + 2.0 * loss_wp + 0.5 * loss_vel + 0.3 * loss_turn + 0.5 * loss_head
+        + 0.1 * loss_smooth + 0.5 * loss_acc
+    )  # fmt: skip
     parts = {
         "pos": loss_pos.item(),
         "wp": loss_wp.item(),
         "vel": loss_vel.item(),
         "turn": loss_turn.item(),
         "head": loss_head.item(),
+        "acc": loss_acc.item(),
     }
     return loss, parts
 
@@ -356,6 +370,7 @@ class TrainSettings:
     seed: int = 0
     warmup: int = 50
     grad_clip: float = 1.0
+    text_noise: float = 0.3
 
 
 def _lr_at(step: int, s: TrainSettings) -> float:
@@ -389,7 +404,7 @@ def fit(
         model.train()
         rng = np.random.default_rng([settings.seed, step])
         gen = torch.Generator(device=dev).manual_seed(settings.seed * 1_000_003 + step)
-        batch = sample_batch(data, rng, settings.batch_size, settings.window)
+        batch = sample_batch(data, rng, settings.batch_size, settings.window, settings.text_noise)
         for group in optimizer.param_groups:
             group["lr"] = _lr_at(step, settings)
         loss, parts = controller_loss(model, batch, gen)
@@ -423,6 +438,7 @@ def train_controller(
     resume: bool = True,
     window: int = 100,
     seed: int = 0,
+    text_noise: float = 0.3,
     config: ControllerConfig | None = None,
     encoder: str = "minilm",
     checkpoint_every: int = 50,
@@ -437,6 +453,8 @@ def train_controller(
         data_dir: dataset root (``train.txt``, ``val.txt``, ``new_joints/``, ``texts/``).
         out_path: checkpoint file; written atomically every `checkpoint_every` steps and at the end.
         steps, batch_size, lr, window, seed: training settings (window in frames).
+        text_noise: expected norm of the noise added to caption embeddings
+            (:func:`motion_env.text.jitter_embeddings`; 0 turns it off).
         device: torch device.
         resume: continue from `out_path` when it exists (same settings, same batches).
         config: model sizes (default ControllerConfig()).
@@ -455,7 +473,9 @@ def train_controller(
 
     torch.manual_seed(seed)
     out_path = Path(out_path)
-    settings = TrainSettings(steps=steps, batch_size=batch_size, lr=lr, window=window, seed=seed)
+    settings = TrainSettings(
+        steps=steps, batch_size=batch_size, lr=lr, window=window, seed=seed, text_noise=text_noise
+    )
     text_encoder = load_text_encoder(encoder, device=device)
     train = path_data_from_clips(read_split(Path(data_dir), "train"), text_encoder.encode)
     val = path_data_from_clips(read_split(Path(data_dir), "val"), text_encoder.encode)

@@ -199,7 +199,7 @@ def test_resample() -> None:
 
 def test_wrong_shapes_raise_clear_errors() -> None:
     bad = np.zeros((10, 21, 3))
-    for fn in (M.canonicalize, M.inverse_kinematics, M.joints_to_features, M.retarget):
+    for fn in (M.canonicalize, M.inverse_kinematics, M.joints_to_features, M.retarget, M.with_bone_lengths):
         with pytest.raises(ValueError, match=r"\(T, 22, 3\).*\(10, 21, 3\)"):
             fn(bad)
     with pytest.raises(ValueError, match="T >= 2"):
@@ -276,3 +276,23 @@ def test_torch_decoder_matches_numpy() -> None:
     out.sum().backward()
     assert tensor.grad is not None and torch.isfinite(tensor.grad).all()
     assert isinstance(M.features_to_joints(tensor.detach()), torch.Tensor)
+
+
+def test_with_bone_lengths_fixes_stretched_bones_and_keeps_the_feet_height() -> None:
+    canonical = _synthetic_clip(seed=3)
+    rng = np.random.default_rng(0)
+    stretch = S.BONE_LENGTHS * rng.uniform(0.85, 1.15, size=(canonical.shape[0], S.NUM_JOINTS))
+    stretched = np.stack([_synthetic_clip(seed=3, lengths=stretch[t])[t] for t in range(len(stretch))])
+    fixed = M.with_bone_lengths(stretched)
+    np.testing.assert_allclose(
+        M.bone_lengths(fixed)[:, 1:], np.broadcast_to(S.BONE_LENGTHS[1:], (60, 21)), atol=1e-5
+    )
+    # Same bone directions, same pelvis XZ, same lowest foot joint height, frame by frame.
+    np.testing.assert_allclose(
+        M._bone_directions(fixed)[:, 1:], M._bone_directions(stretched)[:, 1:], atol=1e-5
+    )
+    np.testing.assert_allclose(fixed[:, 0, [0, 2]], stretched[:, 0, [0, 2]], atol=1e-6)
+    feet = list(S.FOOT_JOINTS)
+    np.testing.assert_allclose(fixed[:, feet, 1].min(1), stretched[:, feet, 1].min(1), atol=1e-5)
+    # A body already on the lengths is left as it is.
+    np.testing.assert_allclose(M.with_bone_lengths(canonical), canonical, atol=1e-5)

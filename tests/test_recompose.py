@@ -157,3 +157,23 @@ def test_clean_foot_contacts_leaves_free_motion_alone() -> None:
     none = np.zeros((len(joints), 4), bool)
     np.testing.assert_allclose(rc.clean_foot_contacts(lifted, none), lifted, atol=1e-5)
     assert math.isclose(rc.foot_skating_ratio(lifted), 0.0)
+
+
+def test_two_bone_ik_keeps_a_nearly_straight_knee_bending_forward() -> None:
+    # A running leg almost straight (knee 1 cm in front of the hip-ankle line), its ankle pulled
+    # 25 cm forward and 10 cm up: the knee must stay in front (+z), not flip backwards.
+    hip = np.array([[0.0, 0.9, 0.0]])
+    knee = np.array([[0.0, 0.5, 0.01]])
+    ankle = np.array([[0.0, 0.08, 0.0]])
+    goal = ankle + [[0.05, 0.1, 0.25]]
+    new_knee, new_ankle = rc.two_bone_ik(hip, knee, ankle, goal)
+    np.testing.assert_allclose(new_ankle, goal, atol=1e-6)
+    axis = (goal - hip) / np.linalg.norm(goal - hip)
+    bend = (new_knee - hip) - ((new_knee - hip) @ axis.T) * axis
+    assert bend[0, 2] > 0 and abs(bend[0, 0]) < bend[0, 2]
+    for length, (a, b) in zip((0.41, 0.42), ((hip, knee), (knee, ankle)), strict=True):
+        assert abs(np.linalg.norm(a - b) - length) < 0.01
+    # A perfectly straight leg bends the way the hint (the toes) points.
+    straight = np.array([[0.0, 0.49, 0.0]])
+    k2, _ = rc.two_bone_ik(hip, straight, ankle, goal, bend_hint=np.array([[1.0, 0.0, 0.0]]))
+    assert (k2 - hip)[0, 0] > 0.05

@@ -5,11 +5,12 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 
 from motion_env.checkpoint import check_text_encoder, text_encoder_record
-from motion_env.text import ClipTextEncoder, MiniLMEncoder, TextEncoder, load_text_encoder
+from motion_env.text import ClipTextEncoder, MiniLMEncoder, TextEncoder, jitter_embeddings, load_text_encoder
 
 
 @pytest.fixture(scope="module")
@@ -74,3 +75,17 @@ def test_checkpoint_records_the_encoder() -> None:
         check_text_encoder(ckpt, other, "gpt.pt")
     with pytest.raises(ValueError, match="no 'text_encoder' record"):
         check_text_encoder({}, fake)
+
+
+def test_jitter_embeddings_adds_noise_of_the_given_norm() -> None:
+    emb = torch.nn.functional.normalize(torch.randn(2000, 384), dim=-1)
+    rng = np.random.default_rng(0)
+    assert jitter_embeddings(emb, 0.0, rng) is emb
+    noisy = jitter_embeddings(emb, 0.3, rng)
+    assert noisy.shape == emb.shape and noisy.dtype == emb.dtype
+    assert abs((noisy - emb).norm(dim=-1).mean().item() - 0.3) < 0.01
+    cos = torch.nn.functional.cosine_similarity(noisy, emb, dim=-1).mean().item()
+    assert 0.94 < cos < 0.98
+    for bad in (-0.1, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="text noise scale"):
+            jitter_embeddings(emb, bad, rng)
