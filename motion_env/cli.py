@@ -126,6 +126,12 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--batch-size", type=int, default=None, help="samples per step (default: the trainer's)")
     p.add_argument("--lr", type=float, default=None, help="peak learning rate (default: the trainer's)")
     p.add_argument("--window", type=int, default=None, help="vqvae/controller: frames per training window")
+    p.add_argument(
+        "--encoder", default=None, help="gpt/controller: text encoder name (default: minilm+sides)"
+    )
+    p.add_argument(
+        "--text-noise", type=float, default=None, help="gpt/controller: caption embedding noise (default 0.3)"
+    )
     p.add_argument("--device", default="cpu", help="torch device: cpu, cuda, cuda:1, ...")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--max-minutes", type=float, default=None, help="stop (with a checkpoint) after this long")
@@ -150,6 +156,10 @@ def _run_train(args: argparse.Namespace) -> int:
         optional["window"] = args.window
     elif args.window is not None:
         raise ValueError("--window applies to vqvae and controller, not gpt")
+    if args.model != "vqvae":
+        optional["text_noise"] = args.text_noise
+    elif args.text_noise is not None or args.encoder is not None:
+        raise ValueError("--encoder and --text-noise apply to gpt and controller, not vqvae")
     common.update({k: v for k, v in optional.items() if v is not None})
     if args.model == "vqvae":
         from motion_env.train_body import train_vqvae
@@ -160,10 +170,16 @@ def _run_train(args: argparse.Namespace) -> int:
 
         if args.vqvae is None:
             raise ValueError("training the gpt needs --vqvae CKPT (the trained VQ-VAE)")
+        if args.encoder is not None:
+            from motion_env.text import load_text_encoder
+
+            common["text_encoder"] = load_text_encoder(args.encoder, device=args.device)
         metrics = train_gpt(args.data, args.vqvae, args.out, **common)
     else:
         from motion_env.train_controller import train_controller
 
+        if args.encoder is not None:
+            common["encoder"] = args.encoder
         metrics = train_controller(args.data, args.out, **common)
     print(json.dumps({"model": args.model, "checkpoint": str(args.out), **metrics}, indent=2))
     return 0

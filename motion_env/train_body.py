@@ -385,7 +385,8 @@ def train_gpt(
         text_drop: share of samples trained with the null text (classifier-free guidance).
         start_crop: share of crops forced to start at the clip's first token (the START slot).
         device, resume, log_every, save_every, seed, max_minutes: as in :func:`train_vqvae`.
-        text_encoder: a :class:`motion_env.text.TextEncoder` (default: MiniLM).
+        text_encoder: a :class:`motion_env.text.TextEncoder` (default: MiniLM with the side
+            vector, ``load_text_encoder("minilm+sides")``); the default config takes its width.
         text_noise: expected norm of the noise added to caption embeddings
             (:func:`motion_env.text.jitter_embeddings`; 0 turns it off).
 
@@ -393,14 +394,14 @@ def train_gpt(
         final metrics: "step", "loss", "seconds_per_step", "val_accuracy", "val_perplexity",
         "train_accuracy", "train_perplexity" (the last two on the train clips, for comparison).
     """
-    from motion_env.text import jitter_embeddings, load_text_encoder
+    from motion_env.text import DEFAULT_TEXT_ENCODER, jitter_embeddings, load_text_encoder
 
     data_dir, out_path = Path(data_dir), Path(out_path)
     vq, vq_ckpt = load_checkpoint(vqvae_path, "vqvae", VQVAEConfig, VQVAE, device)
-    config = config or GPTConfig()
+    encoder = text_encoder or load_text_encoder(DEFAULT_TEXT_ENCODER)
+    config = config or GPTConfig(text_dim=int(encoder.dim))
     if config.vocab_size != vq.config.codebook_size:
         config = config_from_dict(GPTConfig, {**asdict(config), "vocab_size": vq.config.codebook_size})
-    encoder = text_encoder or load_text_encoder("minilm")
     if config.text_dim != encoder.dim:
         raise ValueError(
             f"GPTConfig.text_dim={config.text_dim} but the text encoder {encoder.name} is {encoder.dim}-d"

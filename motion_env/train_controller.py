@@ -28,7 +28,7 @@ from tqdm import tqdm
 from motion_env.controller import ControllerConfig, PathController, to_heading_frame_torch
 from motion_env.paths import root_path_from_joints, waypoint_errors
 from motion_env.skeleton import FPS
-from motion_env.text import jitter_embeddings
+from motion_env.text import DEFAULT_TEXT_ENCODER, jitter_embeddings
 
 CHECKPOINT_KIND = "controller"
 # A frame is "still" below this root speed (m/s): its turn target is zero (no spin on the spot).
@@ -440,7 +440,7 @@ def train_controller(
     seed: int = 0,
     text_noise: float = 0.3,
     config: ControllerConfig | None = None,
-    encoder: str = "minilm",
+    encoder: str = DEFAULT_TEXT_ENCODER,
     checkpoint_every: int = 50,
     eval_every: int = 0,
     eval_windows: int = 256,
@@ -458,7 +458,8 @@ def train_controller(
         device: torch device.
         resume: continue from `out_path` when it exists (same settings, same batches).
         config: model sizes (default ControllerConfig()).
-        encoder: text encoder name for :func:`motion_env.text.load_text_encoder`.
+        encoder: text encoder name for :func:`motion_env.text.load_text_encoder`; the default
+            config takes its width.
         eval_every: evaluate on the val split every N steps (0: only at the end).
         max_minutes: stop (and checkpoint) after this much wall time.
 
@@ -481,7 +482,7 @@ def train_controller(
     val = path_data_from_clips(read_split(Path(data_dir), "val"), text_encoder.encode)
     tqdm.write(f"controller: {len(train.paths)} train clips, {len(val.paths)} val clips")
 
-    model = PathController(config or ControllerConfig()).to(device)
+    model = PathController(config or ControllerConfig(text_dim=int(text_encoder.dim))).to(device)
     optimizer = torch.optim.AdamW(model.parameters(), lr=lr, weight_decay=1e-4)
     start_step, metrics = 0, {}
     if resume and out_path.is_file():

@@ -144,7 +144,17 @@ def test_train_vqvae_and_gpt_then_generate_from_the_checkpoints(tmp_path, capsys
     assert metrics["model"] == "vqvae" and metrics["step"] == 2 and "val_mpjpe_cm" in metrics
     assert (
         main(
-            ["train", "gpt", *common, "--vqvae", str(weights / "vqvae.pt"), "--out", str(weights / "gpt.pt")]
+            [
+                "train",
+                "gpt",
+                *common,
+                "--vqvae",
+                str(weights / "vqvae.pt"),
+                "--out",
+                str(weights / "gpt.pt"),
+                "--encoder",
+                "minilm",
+            ]
         )
         == 0
     )

@@ -89,3 +89,20 @@ def test_jitter_embeddings_adds_noise_of_the_given_norm() -> None:
     for bad in (-0.1, float("nan"), float("inf")):
         with pytest.raises(ValueError, match="text noise scale"):
             jitter_embeddings(emb, bad, rng)
+
+
+def test_sided_encoder_adds_a_left_right_vector(minilm: MiniLMEncoder) -> None:
+    sided = load_text_encoder("minilm+sides")
+    assert (sided.name, sided.dim) == ("minilm+sides", 768)
+    right, left, plain = sided.encode(
+        ["a person waves the right hand", "a person waves the left hand", "a person walks forward"]
+    )
+    torch.testing.assert_close(right[:384], minilm.encode(["a person waves the right hand"])[0])
+    assert plain[384:].abs().max() == 0  # no side named: no side vector
+    torch.testing.assert_close(right[384:], -left[384:])  # mirrored caption: opposite side
+    assert abs(right[384:].norm().item() - 1.0) < 1e-5
+    # New wording, same side: the side vectors agree although the sentences differ.
+    new = sided.encode(["standing still, someone greets a friend by waving with the right hand"])[0]
+    assert torch.nn.functional.cosine_similarity(new[384:], right[384:], dim=0) > 0.6
+    with pytest.raises(ValueError, match="minilm\\+sides"):
+        check_text_encoder({"text_encoder": text_encoder_record(sided)}, minilm)
