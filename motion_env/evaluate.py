@@ -17,7 +17,8 @@ clips vs the real test takes, measured the same way.
 
 Caption steering: mean speed and cadence (steps/s, from foot contacts) for running vs walking
 captions on an untimed route and without a route; right- vs left-wrist height for "waves with the
-right/left hand"; speed of "exhausted" / "elderly" vs "active" walks. The same numbers on real
+right/left hand"; heading change for left- vs right-turn captions without a route; speed of
+"exhausted" / "elderly" vs "active" walks. The same numbers on real
 takes of the dataset with those labels are given for reference.
 """
 
@@ -53,6 +54,8 @@ RUN_CAPTIONS = (
 RUN_CAPTIONS_TRAINING_PHRASING = ("a person runs forward", "someone jogs straight ahead")
 WAVE_RIGHT = ("standing still, someone greets a friend by waving with the right hand",)
 WAVE_LEFT = ("standing still, someone greets a friend by waving with the left hand",)
+TURN_LEFT = ("a man makes his way forward on foot, then curves off leftward",)
+TURN_RIGHT = ("a man makes his way forward on foot, then curves off rightward",)
 STYLE_CAPTIONS = {
     "exhausted": ("drained and out of breath, an exhausted man drags himself forward",),
     "elderly": ("an elderly gentleman in his nineties makes his way forward with care",),
@@ -244,6 +247,13 @@ def wrist_heights(joints: np.ndarray) -> dict[str, float]:
     return {"right_cm": float(right), "left_cm": float(left), "right_minus_left_cm": float(right - left)}
 
 
+def heading_change(joints: np.ndarray) -> float:
+    """How far the body turns over a clip (degrees; positive = counterclockwise seen from above,
+    a left turn for a body facing +Z with +X on its left)."""
+    heading = np.unwrap(root_path_from_joints(np.asarray(joints, np.float64))[:, 2])
+    return float(np.rad2deg(heading[-1] - heading[0]))
+
+
 def _mean_std(values: list[float]) -> dict[str, float]:
     arr = np.asarray(values, np.float64)
     return {"mean": float(arr.mean()), "std": float(arr.std()), "n": int(arr.size)}
@@ -340,6 +350,8 @@ def caption_steering(gen: Any, seeds: int = 4, num_frames: int = 200, seed: int 
     for side, texts in (("wave_right", WAVE_RIGHT), ("wave_left", WAVE_LEFT)):
         heights = [wrist_heights(j) for j in run(texts, None, 120)]
         out[side] = {k: _mean_std([h[k] for h in heights]) for k in heights[0]}
+    for side, texts in (("turn_left", TURN_LEFT), ("turn_right", TURN_RIGHT)):
+        out[side] = {"heading_change_deg": _mean_std([heading_change(j) for j in run(texts, None)])}
     for style, texts in STYLE_CAPTIONS.items():
         sc = [speed_and_cadence(j) for j in run(texts, untimed)]
         out[f"walk_{style}"] = {
@@ -361,6 +373,8 @@ def real_reference(data_dir: str | Path, max_per_group: int = 40, seed: int = 0)
         "run": lambda r: r["label"] == "run",
         "wave_right": lambda r: r["label"] == "wave-right-hand",
         "wave_left": lambda r: r["label"] == "wave-left-hand",
+        "turn_left": lambda r: r["label"] == "walk-turn-left",
+        "turn_right": lambda r: r["label"] == "walk-turn-right",
         "walk_exhausted": lambda r: r["label"] == "walk" and r["style"] == "exhausted",
         "walk_elderly": lambda r: r["label"] == "walk" and r["style"] == "elderly",
         "walk_active": lambda r: r["label"] == "walk" and r["style"] == "active",
@@ -375,6 +389,8 @@ def real_reference(data_dir: str | Path, max_per_group: int = 40, seed: int = 0)
         if name.startswith("wave"):
             heights = [wrist_heights(j) for j in clips]
             out[name] = {k: _mean_std([h[k] for h in heights]) for k in heights[0]}
+        elif name.startswith("turn"):
+            out[name] = {"heading_change_deg": _mean_std([heading_change(j) for j in clips])}
         else:
             sc = [speed_and_cadence(j) for j in clips]
             out[name] = {
@@ -475,6 +491,8 @@ def format_results(results: dict[str, Any]) -> str:
     row("run speed m/s (training phrasing)", "run_training_phrasing_untimed_route", "run", "speed_mps")
     for side in ("wave_right", "wave_left"):
         row(f"{side}: right-left wrist cm", side, side, "right_minus_left_cm")
+    for side in ("turn_left", "turn_right"):
+        row(f"{side}: heading change deg (no route)", side, side, "heading_change_deg")
     for style in STYLE_CAPTIONS:
         row(f"walk {style} speed m/s", f"walk_{style}", f"walk_{style}", "speed_mps")
     lines.append(f"\n({results['seconds']:.0f} s)")

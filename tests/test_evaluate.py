@@ -12,6 +12,8 @@ from motion_env.captions import BANDAI_CONTENTS, BANDAI_STYLES, captions_for_ban
 from motion_env.evaluate import (
     RUN_CAPTIONS,
     STYLE_CAPTIONS,
+    TURN_LEFT,
+    TURN_RIGHT,
     WALK_CAPTIONS,
     WAVE_LEFT,
     WAVE_RIGHT,
@@ -93,6 +95,7 @@ def test_steering_captions_use_words_the_training_captions_never_use() -> None:
         WALK_CAPTIONS: ("ambles", "unhurried", "gait", "saunters", "clip"),
         RUN_CAPTIONS: ("hurries", "tilt", "pounding", "races", "legs", "bolts", "top"),
         WAVE_RIGHT + WAVE_LEFT: ("greets", "friend"),
+        TURN_LEFT + TURN_RIGHT: ("foot", "leftward", "rightward"),
         tuple(c for group in STYLE_CAPTIONS.values() for c in group): ("drained", "drags", "nineties", "pep"),
     }
     for captions, words in new_words.items():
