@@ -14,7 +14,7 @@ The one place that wires the parts together (C-T2M's decoupled pipeline):
    are denormalised with the training set's Mean/Std;
 6. the decoded body, relative to its root, is recomposed onto the root path
    (:mod:`motion_env.recompose`), rebuilt on the skeleton's fixed bone lengths
-   (:func:`motion_env.motion.with_bone_lengths`: decoded bones stretch by up to 10 %), and the feet
+   (:func:`motion_env.motion.with_bone_lengths`: decoded legs come out up to 9 cm short), and the feet
    are pinned where the decoder says they are in contact (:class:`FootPinner`).
 
 Streaming (:class:`motion_env.streaming.MotionStream`, from :meth:`MotionGenerator.stream`) runs
