@@ -256,7 +256,7 @@ class _TokenSet:
     """Every clip of a split as tokens + per-token path features + caption indices."""
 
     def __init__(self, clips: list[Any], vq: VQVAE, mean: np.ndarray, std: np.ndarray, device: Any) -> None:
-        from motion_env.paths import root_path_from_joints, token_path_features
+        from motion_env.paths import gait_free_path, root_path_from_joints, token_path_features
 
         rate = vq.rate
         self.codes: list[torch.Tensor] = []
@@ -270,7 +270,9 @@ class _TokenSet:
                 continue
             x = torch.from_numpy((feats[: n * rate] - mean) / std)[None].to(device)
             self.codes.append(vq.encode(x)[0].cpu())
-            pf = token_path_features(root_path_from_joints(np.asarray(clip.joints, np.float32)), rate)
+            # The generator's paths come from the path controller, which has no gait in them.
+            path = gait_free_path(root_path_from_joints(np.asarray(clip.joints, np.float32)))
+            pf = token_path_features(path, rate)
             self.path.append(torch.from_numpy(pf[:n]))
             self.captions.append(list(clip.captions))
             self.names.append(clip.name)

@@ -108,3 +108,21 @@ def test_waypoint_errors_timed_and_untimed() -> None:
     err = paths.waypoint_errors(path, [[0.0, 1.0, 20], [0.3, 2.0, np.nan], [0.0, 0.0, 500]])
     # timed on the path; untimed closest approach 0.3 m; past the end measured at the last frame
     np.testing.assert_allclose(err, [0.0, 0.3, 2.95], atol=1e-5)
+
+
+def test_gait_free_path_removes_step_sway_and_keeps_the_route() -> None:
+    t = np.arange(200) / 20.0
+    heading = np.linspace(0.0, 1.0, 200)
+    # 1.3 m/s forward with a 2 Hz surge and a 1 Hz, 4 cm sideways sway, as a walking pelvis.
+    z = 1.3 * t + 0.02 * np.sin(2 * np.pi * 2.0 * t)
+    x = 0.04 * np.sin(2 * np.pi * 1.0 * t)
+    path = np.stack([x, z, heading], -1).astype(np.float32)
+    smooth = paths.gait_free_path(path)
+    np.testing.assert_array_equal(smooth[:, 2], path[:, 2])
+    inner = slice(20, -20)
+    assert np.abs(smooth[inner, 0]).max() < 0.4 * 0.04  # the 1 Hz sway mostly gone
+    speed = np.diff(smooth[inner, 1]) * 20
+    assert np.abs(speed - 1.3).max() < 0.05  # the 2 Hz surge gone, the pace kept
+    np.testing.assert_allclose(paths.gait_free_path(path, sigma=0), path)
+    with pytest.raises(ValueError, match="root_path"):
+        paths.gait_free_path(np.zeros((10, 2)))
