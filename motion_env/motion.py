@@ -431,16 +431,26 @@ def retarget(joints: np.ndarray, lengths: np.ndarray = BONE_LENGTHS) -> np.ndarr
     median over frames) so that steps keep their size relative to the legs. Returns (T, 22, 3).
     """
     joints = _check_joints(joints)
-    lengths = np.asarray(lengths, dtype=np.float64)
-    if lengths.shape != (NUM_JOINTS,):
-        raise ValueError(f"lengths must have shape ({NUM_JOINTS},), got {lengths.shape}")
+    lengths = _check_lengths(lengths)
     src = np.median(bone_lengths(joints), axis=0)
     r_knee, r_ankle = 5, 8
     src_leg = src[r_knee] + src[r_ankle]
     scale = (lengths[r_knee] + lengths[r_ankle]) / src_leg if src_leg > 1e-9 else 1.0
+    return _rebuild(joints, joints[:, 0] * scale, lengths)
+
+
+def _check_lengths(lengths: np.ndarray) -> np.ndarray:
+    lengths = np.asarray(lengths, dtype=np.float64)
+    if lengths.shape != (NUM_JOINTS,):
+        raise ValueError(f"lengths must have shape ({NUM_JOINTS},), got {lengths.shape}")
+    return lengths
+
+
+def _rebuild(joints: np.ndarray, pelvis: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """The poses of `joints` rebuilt from `pelvis` (T, 3) outward with bone `lengths`."""
     dirs = _bone_directions(joints)
     out = np.zeros_like(joints)
-    out[:, 0] = joints[:, 0] * scale
+    out[:, 0] = pelvis
     for j in range(1, NUM_JOINTS):
         out[:, j] = out[:, PARENTS[j]] + dirs[:, j] * lengths[j]
     return out
@@ -457,14 +467,7 @@ def with_bone_lengths(joints: np.ndarray, lengths: np.ndarray = BONE_LENGTHS) ->
     joints: (T, 22, 3); lengths: (22,). Returns (T, 22, 3) float32.
     """
     joints = _check_joints(joints)
-    lengths = np.asarray(lengths, dtype=np.float64)
-    if lengths.shape != (NUM_JOINTS,):
-        raise ValueError(f"lengths must have shape ({NUM_JOINTS},), got {lengths.shape}")
-    dirs = _bone_directions(joints)
-    out = np.zeros_like(joints)
-    out[:, 0] = joints[:, 0]
-    for j in range(1, NUM_JOINTS):
-        out[:, j] = out[:, PARENTS[j]] + dirs[:, j] * lengths[j]
+    out = _rebuild(joints, joints[:, 0], _check_lengths(lengths))
     feet = list(FOOT_JOINTS)
     out[..., 1] += (joints[:, feet, 1].min(axis=1) - out[:, feet, 1].min(axis=1))[:, None]
     return out.astype(np.float32)
