@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 import motion_env
-from motion_env.render import plot_path, render_video
+from motion_env.render.stick import plot_path, render_video
 from policies import AStarPolicy
 from policies.astar import obstacle_distance
 

@@ -22,8 +22,8 @@ import numpy as np
 import torch
 
 import motion_env
-from motion_env.paths import waypoint_errors
-from motion_env.render import plot_path, render_video
+from motion_env.motion.trajectory import waypoint_errors
+from motion_env.render.stick import plot_path, render_video
 from policies import WaypointPolicy
 
 

@@ -1,25 +1,27 @@
 """motion_env: text- and path-controllable human motion as a Gymnasium environment.
 
 Importing the package registers the Gymnasium environments (``motion_env/Waypoints-v0``, ...).
-Torch-heavy parts (the generator) are imported lazily, on first use.
+Torch-heavy parts (the generator) are imported lazily, on first use. The package map is in
+``docs/architecture.md``.
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from motion_env import motion, skeleton
-from motion_env.clip import Motion, load_motion
-from motion_env.registration import register_envs
+from motion_env import motion
+from motion_env.envs.registration import register_envs
+from motion_env.io import load_bvh, load_motion
+from motion_env.motion import skeleton
+from motion_env.motion.types import Motion
 
 if TYPE_CHECKING:
-    from motion_env.bvh import load_bvh
-    from motion_env.generator import MotionGenerator
+    from motion_env.generation.generator import MotionGenerator
 
 __version__ = "0.1.0"
 __all__ = ["Motion", "MotionGenerator", "load_bvh", "load_motion", "motion", "skeleton"]
 
-_LAZY = {"load_bvh": "motion_env.bvh", "MotionGenerator": "motion_env.generator"}
+_LAZY = {"MotionGenerator": "motion_env.generation.generator"}
 
 
 def __getattr__(name: str) -> Any:

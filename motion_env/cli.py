@@ -11,7 +11,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from motion_env.captions import DEFAULT_NUM_CAPTIONS
+from motion_env.data.captions import DEFAULT_NUM_CAPTIONS
 
 
 def _add_show(sub: argparse._SubParsersAction) -> None:
@@ -35,8 +35,8 @@ def _add_show(sub: argparse._SubParsersAction) -> None:
 def _run_show(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from motion_env.clip import load_motion
-    from motion_env.render import VIDEO_SUFFIXES, plot_path, render_video
+    from motion_env.io.load import load_motion
+    from motion_env.render.stick import VIDEO_SUFFIXES, plot_path, render_video
 
     src = Path(args.file)
     if args.out is None:
@@ -90,7 +90,7 @@ def _add_data(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_data_build(args: argparse.Namespace) -> int:
-    from motion_env.dataset import build_dataset
+    from motion_env.data.dataset import build_dataset
 
     try:
         summary = build_dataset(
@@ -162,21 +162,21 @@ def _run_train(args: argparse.Namespace) -> int:
         raise ValueError("--encoder and --text-noise apply to gpt and controller, not vqvae")
     common.update({k: v for k, v in optional.items() if v is not None})
     if args.model == "vqvae":
-        from motion_env.train_body import train_vqvae
+        from motion_env.training.body import train_vqvae
 
         metrics = train_vqvae(args.data, args.out, **common)
     elif args.model == "gpt":
-        from motion_env.train_body import train_gpt
+        from motion_env.training.body import train_gpt
 
         if args.vqvae is None:
             raise ValueError("training the gpt needs --vqvae CKPT (the trained VQ-VAE)")
         if args.encoder is not None:
-            from motion_env.text import load_text_encoder
+            from motion_env.text.encoders import load_text_encoder
 
             common["text_encoder"] = load_text_encoder(args.encoder, device=args.device)
         metrics = train_gpt(args.data, args.vqvae, args.out, **common)
     else:
-        from motion_env.train_controller import train_controller
+        from motion_env.training.controller import train_controller
 
         if args.encoder is not None:
             common["encoder"] = args.encoder
@@ -230,7 +230,7 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_generate(args: argparse.Namespace) -> int:
-    from motion_env.generator import MotionGenerator
+    from motion_env.generation.generator import MotionGenerator
 
     waypoints = None if args.waypoints is None else _parse_waypoints(args.waypoints)
     start = None
@@ -249,7 +249,7 @@ def _run_generate(args: argparse.Namespace) -> int:
     out = motion.save(args.out)
     print(f"wrote {out} ({motion.num_frames} frames, {motion.duration:.1f} s)")
     if args.video or args.plot:
-        from motion_env.render import plot_path, render_video
+        from motion_env.render.stick import plot_path, render_video
 
         if args.video:
             print(f"wrote {render_video(motion, args.video)}")
@@ -280,7 +280,7 @@ def _run_bench(args: argparse.Namespace) -> int:
     import json
     from pathlib import Path
 
-    from motion_env.bench import format_results, run_bench
+    from motion_env.evaluation.bench import format_results, run_bench
 
     sizes = [int(v) for v in args.batch_sizes.split(",") if v.strip()]
     results = run_bench(
@@ -319,7 +319,7 @@ def _run_replay(args: argparse.Namespace) -> int:
 
     # Offscreen rendering needs this before mujoco is imported (EGL works on CPU through Mesa).
     os.environ.setdefault("MUJOCO_GL", "egl")
-    from motion_env.clip import load_motion
+    from motion_env.io.load import load_motion
     from motion_env.replay import evaluate_detailed, format_report
 
     motion = load_motion(args.file)

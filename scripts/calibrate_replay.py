@@ -34,13 +34,13 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from motion_env.bvh import load_bvh
-from motion_env.captions import parse_cmu_index
-from motion_env.dataset import split_of
+from motion_env.data.captions import parse_cmu_index
+from motion_env.data.dataset import split_of
+from motion_env.io.bvh import load_bvh
+from motion_env.motion.skeleton import FPS
 from motion_env.replay import corruptions
-from motion_env.replay.evaluate import CHECKS, UNITS, report, signals, thresholds_path
+from motion_env.replay.checks import CHECKS, UNITS, report, signals, thresholds_path
 from motion_env.replay.kinematic import measure
-from motion_env.skeleton import FPS
 
 QUANTILE = 99.0
 MARGIN = 1.25

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import torch
 
-from motion_env.evaluate import evaluate, format_results
-from motion_env.generator import MotionGenerator
+from motion_env.evaluation.routes import evaluate, format_results
+from motion_env.generation.generator import MotionGenerator
 
 
 def main(argv: list[str] | None = None) -> int:

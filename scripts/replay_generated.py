@@ -14,7 +14,7 @@ from collections import Counter
 
 import torch
 
-from motion_env.generator import MotionGenerator
+from motion_env.generation.generator import MotionGenerator
 from motion_env.replay import evaluate
 
 CASES = (

@@ -13,8 +13,8 @@ from scipy.spatial.transform import Rotation
 
 from motion_env import motion as M
 from motion_env import skeleton as S
-from motion_env.bvh import bvh_world_positions, load_bvh, map_joint_names, read_bvh
-from motion_env.clip import load_motion
+from motion_env.io.bvh import bvh_world_positions, load_bvh, map_joint_names, read_bvh
+from motion_env.io.load import load_motion
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 BANDAI = DATA / "bandai" / "dataset-2" / "bvh"

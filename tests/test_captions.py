@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from motion_env.captions import (
+from motion_env.data.captions import (
     BANDAI_CONTENTS,
     BANDAI_STYLES,
     ClipLabels,
@@ -17,9 +17,9 @@ from motion_env.captions import (
     captions_for_description,
     captions_for_file_name,
     labels_for_file,
-    mirror_caption,
     parse_cmu_index,
 )
+from motion_env.text.mirror import mirror_caption
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 CMU_INDEX = SHARED / "cmu" / "CMU-INDEX.md"

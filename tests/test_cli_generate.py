@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from motion_env.cli import _parse_waypoints, main
-from motion_env.clip import Motion
+from motion_env.motion.types import Motion
 
 _ENCODERS: dict[str, object] = {}
 
@@ -98,7 +98,9 @@ def test_bench_runs_and_writes_json(tmp_path, capsys) -> None:
 
 def _tiny_dataset(root: Path, clips: int = 6, frames: int = 61) -> Path:
     """A HumanML3D-layout dataset of synthetic walks (a rest pose swinging its hips along a curve)."""
-    from motion_env.motion import bone_offsets, forward_kinematics, joints_to_features, quat_from_yaw
+    from motion_env.motion.features import joints_to_features
+    from motion_env.motion.kinematics import bone_offsets, forward_kinematics
+    from motion_env.motion.rotations import quat_from_yaw
 
     for sub in ("new_joints", "new_joint_vecs", "texts"):
         (root / sub).mkdir(parents=True, exist_ok=True)
@@ -133,8 +135,8 @@ def _tiny_dataset(root: Path, clips: int = 6, frames: int = 61) -> Path:
 
 @pytest.mark.slow
 def test_train_vqvae_and_gpt_then_generate_from_the_checkpoints(tmp_path, capsys) -> None:
-    from motion_env.checkpoint import save_checkpoint
-    from motion_env.generator import MotionGenerator
+    from motion_env.generation.generator import MotionGenerator
+    from motion_env.models.checkpoint import save_checkpoint
 
     data, weights = _tiny_dataset(tmp_path / "data"), tmp_path / "weights"
     common = ["--data", str(data), "--steps", "2", "--batch-size", "4"]

@@ -11,15 +11,15 @@ import numpy as np
 import pytest
 import torch
 
-from motion_env.checkpoint import save_checkpoint
-from motion_env.controller import (
+from motion_env.models.checkpoint import save_checkpoint
+from motion_env.models.controller import (
     ControllerConfig,
     PathController,
     from_heading_frame_torch,
     to_heading_frame_torch,
 )
-from motion_env.motion import from_heading_frame, to_heading_frame
-from motion_env.train_controller import (
+from motion_env.motion.kinematics import from_heading_frame, to_heading_frame
+from motion_env.training.controller import (
     CHECKPOINT_KIND,
     PathData,
     TrainSettings,

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from motion_env import motion as mmath
-from motion_env.captions import caption_tokens, mirror_caption
 from motion_env.cli import main
-from motion_env.dataset import (
+from motion_env.data.captions import caption_tokens
+from motion_env.data.dataset import (
     MIRROR_PREFIX,
     SPLITS,
     STD_GROUPS,
@@ -22,7 +22,8 @@ from motion_env.dataset import (
     read_split,
     split_of,
 )
-from motion_env.skeleton import FEATURE_DIM, NUM_JOINTS
+from motion_env.motion.skeleton import FEATURE_DIM, NUM_JOINTS
+from motion_env.text.mirror import mirror_caption
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 

@@ -19,8 +19,8 @@ import torch
 from gymnasium.utils.env_checker import check_env
 
 import motion_env
-from motion_env.motion import from_heading_frame
-from motion_env.registration import ENVIRONMENTS
+from motion_env.envs.registration import ENVIRONMENTS
+from motion_env.motion.kinematics import from_heading_frame
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 torch.set_num_threads(1)
@@ -57,7 +57,7 @@ def test_importing_registers_every_id_without_torch():
         "assert spec.max_episode_steps and spec.vector_entry_point\n"
     )
     subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
-    motion_env.registration.register_envs()  # idempotent
+    motion_env.envs.registration.register_envs()  # idempotent
 
 
 @pytest.mark.parametrize("env_id", list(ENVIRONMENTS))

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from motion_env.captions import BANDAI_CONTENTS, BANDAI_STYLES, captions_for_bandai
-from motion_env.evaluate import (
+from motion_env.data.captions import BANDAI_CONTENTS, BANDAI_STYLES, captions_for_bandai
+from motion_env.evaluation.routes import (
     RUN_CAPTIONS,
     STYLE_CAPTIONS,
     TURN_LEFT,
@@ -24,7 +24,7 @@ from motion_env.evaluate import (
     synthetic_path,
     wrist_heights,
 )
-from motion_env.skeleton import FPS
+from motion_env.motion.skeleton import FPS
 
 BANDAI = Path(__file__).resolve().parents[2] / "shared" / "data" / "bandai" / "dataset-2" / "bvh"
 
@@ -71,7 +71,7 @@ def test_heldout_captions_use_new_words() -> None:
 
 @pytest.mark.skipif(not BANDAI.is_dir(), reason="real mocap (shared/data/bandai) not present")
 def test_speed_cadence_and_wrists_on_real_takes() -> None:
-    from motion_env.bvh import load_bvh
+    from motion_env.io.bvh import load_bvh
 
     walk = load_bvh(BANDAI / "dataset-2_walk_normal_001.bvh.gz").joints
     run = load_bvh(BANDAI / "dataset-2_run_normal_001.bvh.gz").joints

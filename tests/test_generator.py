@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from motion_env.clip import Motion
-from motion_env.generator import DEFAULT_WEIGHTS, WEIGHT_FILES, MotionGenerator, SamplingConfig
-from motion_env.skeleton import FPS, NUM_JOINTS
+from motion_env.generation.generator import DEFAULT_WEIGHTS, WEIGHT_FILES, MotionGenerator, SamplingConfig
+from motion_env.motion.skeleton import FPS, NUM_JOINTS
+from motion_env.motion.types import Motion
 
 ROUTE = [[0.0, 2.0, 40], [2.0, 4.0, 100]]
 
@@ -224,7 +224,7 @@ def test_shipped_model_follows_a_route() -> None:
 
 def _standing(frames: int, step: float) -> np.ndarray:
     """A rest-pose body that glides along +X by `step` metres per frame, feet included."""
-    from motion_env.motion import bone_offsets, forward_kinematics
+    from motion_env.motion.kinematics import bone_offsets, forward_kinematics
 
     rots = np.zeros((frames, NUM_JOINTS, 4))
     rots[..., 0] = 1.0
@@ -234,7 +234,7 @@ def _standing(frames: int, step: float) -> np.ndarray:
 
 
 def test_foot_pinner_holds_feet_in_contact_and_lets_go_smoothly() -> None:
-    from motion_env.generator import FOOT_BLEND, FOOT_MAX_OFFSET, FootPinner
+    from motion_env.generation.feet import FOOT_BLEND, FOOT_MAX_OFFSET, FootPinner
 
     joints = _standing(20, 0.01)  # the feet skate 1 cm per frame
     contacts = np.zeros((20, 4))

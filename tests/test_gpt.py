@@ -8,9 +8,10 @@ from pathlib import Path
 import pytest
 import torch
 
-from motion_env.checkpoint import load_checkpoint, save_checkpoint
-from motion_env.gpt import GPTConfig, TokenGPT, _sample
-from motion_env.paths import D_PATH
+from motion_env.models.checkpoint import load_checkpoint, save_checkpoint
+from motion_env.models.gpt import GPTConfig, TokenGPT
+from motion_env.models.path_features import D_PATH
+from motion_env.models.sampling import SamplingConfig, sample_tokens
 
 V, TEXT = 32, 16
 
@@ -107,7 +108,7 @@ def test_sliding_window_reprimes_from_last_half() -> None:
     window_prev = tokens[:, 3:8]  # inputs of steps 4..8 are the tokens of steps 3..7
     expected, _ = model(window_prev, path[:, 4:9], text)
     torch.testing.assert_close(logits, expected[:, -1], atol=1e-5, rtol=1e-5)
-    out = model.generate(text, torch.randn(2, 40, D_PATH), 40, generator=torch.Generator().manual_seed(0))
+    out = model.generate(text, torch.randn(2, 40, D_PATH), 40, [torch.Generator().manual_seed(0)] * 2)
     assert out.shape == (2, 40) and out.min() >= 0 and out.max() < V
 
 
@@ -121,11 +122,9 @@ def test_batched_equals_per_sample() -> None:
         torch.testing.assert_close(alone, batched[b : b + 1], atol=1e-5, rtol=1e-5)
     path = torch.randn(3, 20, D_PATH)
     gens = [torch.Generator().manual_seed(10 + b) for b in range(3)]
-    together = model.generate(text, path, 20, generator=gens)
+    together = model.generate(text, path, 20, gens)
     for b in range(3):
-        alone = model.generate(
-            text[b : b + 1], path[b : b + 1], 20, generator=[torch.Generator().manual_seed(10 + b)]
-        )
+        alone = model.generate(text[b : b + 1], path[b : b + 1], 20, [torch.Generator().manual_seed(10 + b)])
         assert torch.equal(alone[0], together[b])
 
 
@@ -133,14 +132,19 @@ def test_seeded_generation_is_deterministic() -> None:
     model = tiny()
     _, _, text = inputs(2, 1)
     path = torch.randn(2, 12, D_PATH)
-    a = model.generate(text, path, 12, generator=torch.Generator().manual_seed(3), top_p=0.9)
-    b = model.generate(text, path, 12, generator=torch.Generator().manual_seed(3), top_p=0.9)
-    c = model.generate(text, path, 12, generator=torch.Generator().manual_seed(4), top_p=0.9)
+    nucleus = SamplingConfig(top_p=0.9)
+
+    def gens(seed: int) -> list[torch.Generator]:
+        return [torch.Generator().manual_seed(seed + b) for b in range(2)]
+
+    a = model.generate(text, path, 12, gens(3), nucleus)
+    b = model.generate(text, path, 12, gens(3), nucleus)
+    c = model.generate(text, path, 12, gens(4), nucleus)
     assert torch.equal(a, b) and not torch.equal(a, c)
-    g = model.generate(text, path, 12, generator=torch.Generator().manual_seed(3), guidance=2.5)
+    g = model.generate(text, path, 12, gens(3), SamplingConfig(guidance=2.5))
     assert g.shape == (2, 12)
-    with pytest.raises(ValueError, match="temperature"):
-        model.generate(text, path, 12, temperature=0.0)
+    with pytest.raises(ValueError, match="generators"):
+        model.generate(text, path, 12, gens(3)[:1])
 
 
 def test_row_reset_and_text_change() -> None:
@@ -167,7 +171,7 @@ def test_row_reset_and_text_change() -> None:
 def test_top_p_keeps_only_the_nucleus() -> None:
     logits = torch.log(torch.tensor([[0.6, 0.3, 0.05, 0.05]]))
     g = torch.Generator().manual_seed(0)
-    draws = {int(_sample(logits, 1.0, 0.8, g)) for _ in range(200)}
+    draws = {int(sample_tokens(logits, [g], SamplingConfig(top_p=0.8))[0]) for _ in range(200)}
     assert draws == {0, 1}
 
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from motion_env import motion as M
+from motion_env.motion import kinematics
 from motion_env import skeleton as S
 
 SAMPLE = Path(__file__).resolve().parents[2] / "shared" / "data" / "humanml3d_sample"
@@ -289,7 +290,7 @@ def test_with_bone_lengths_fixes_stretched_bones_and_keeps_the_feet_height() -> 
     )
     # Same bone directions, same pelvis XZ, same lowest foot joint height, frame by frame.
     np.testing.assert_allclose(
-        M._bone_directions(fixed)[:, 1:], M._bone_directions(stretched)[:, 1:], atol=1e-5
+        kinematics._bone_directions(fixed)[:, 1:], kinematics._bone_directions(stretched)[:, 1:], atol=1e-5
     )
     np.testing.assert_allclose(fixed[:, 0, [0, 2]], stretched[:, 0, [0, 2]], atol=1e-6)
     feet = list(S.FOOT_JOINTS)

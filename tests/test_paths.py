@@ -8,8 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from motion_env import paths
-from motion_env.motion import heading_from_joints, rotate_y
+from motion_env.models import path_features
+from motion_env.motion import trajectory as paths
+from motion_env.motion.kinematics import heading_from_joints, rotate_y
 
 SAMPLE = Path(__file__).resolve().parents[2] / "shared" / "data" / "humanml3d_sample"
 
@@ -71,8 +72,8 @@ def test_validate_waypoints_errors(bad: object, match: str) -> None:
 
 
 def test_token_path_features_straight_walk() -> None:
-    feats = paths.token_path_features(_line(61, 1.4, 0.7), rate=4)
-    assert feats.shape == (16, paths.D_PATH) and feats.dtype == np.float32
+    feats = path_features.token_path_features(_line(61, 1.4, 0.7), rate=4)
+    assert feats.shape == (16, path_features.D_PATH) and feats.dtype == np.float32
     # Walking forward at 1.4 m/s: forward velocity 1.4, no lateral motion, no turn, over both horizons.
     np.testing.assert_allclose(feats[:-1, [1, 4]], 1.4, atol=1e-4)
     np.testing.assert_allclose(feats[:-1, [0, 2, 3, 5]], 0, atol=1e-4)
@@ -85,16 +86,16 @@ def test_token_path_features_invariant_to_placement_and_sees_turns() -> None:
     x = np.cumsum(np.sin(theta)) / 20.0
     z = np.cumsum(np.cos(theta)) / 20.0
     path = np.stack([x, z, theta], 1)
-    feats = paths.token_path_features(path, rate=4)
+    feats = path_features.token_path_features(path, rate=4)
     moved = path.copy()
     pts = rotate_y(np.stack([path[:, 0], np.zeros(80), path[:, 1]], 1), 2.0)
     moved[:, 0], moved[:, 1] = pts[:, 0] + 5.0, pts[:, 2] - 3.0
     moved[:, 2] = paths.wrap_angle(path[:, 2] + 2.0)  # wrapped headings are unwrapped internally
-    np.testing.assert_allclose(paths.token_path_features(moved, 4), feats, atol=1e-4)
+    np.testing.assert_allclose(path_features.token_path_features(moved, 4), feats, atol=1e-4)
     np.testing.assert_allclose(feats[:10, [2, 5]], 0.8, atol=1e-3)
     assert (feats[:10, 0] > 0).all()  # the path bends towards the character's left
     with pytest.raises(ValueError, match="rate"):
-        paths.token_path_features(path, 0)
+        path_features.token_path_features(path, 0)
 
 
 def test_relative_waypoints_in_heading_frame() -> None:

@@ -8,10 +8,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from motion_env import recompose as rc
-from motion_env.motion import features_to_joints, heading_from_joints
-from motion_env.paths import root_path_from_joints, waypoint_errors, wrap_angle
-from motion_env.skeleton import FOOT_JOINTS
+from motion_env.evaluation.metrics import foot_skating_ratio
+from motion_env.generation import recompose as rc
+from motion_env.generation.feet import LEGS, FootPinner, two_bone_ik
+from motion_env.motion.features import features_to_joints
+from motion_env.motion.kinematics import heading_from_joints
+from motion_env.motion.skeleton import FOOT_JOINTS
+from motion_env.motion.trajectory import root_path_from_joints, waypoint_errors, wrap_angle
 
 SAMPLE = Path(__file__).resolve().parents[2] / "shared" / "data" / "humanml3d_sample"
 
@@ -113,50 +116,47 @@ def test_foot_skating_ratio_definition() -> None:
     n = 21
     joints = np.zeros((n, 22, 3), np.float32)
     joints[:, :, 1] = 1.0
-    assert rc.foot_skating_ratio(joints) == 0.0
+    assert foot_skating_ratio(joints) == 0.0
     joints[:, FOOT_JOINTS[1], 1] = 0.02  # a toe on the floor ...
-    assert rc.foot_skating_ratio(joints) == 0.0
+    assert foot_skating_ratio(joints) == 0.0
     joints[:, FOOT_JOINTS[1], 0] = np.arange(n) * 0.03  # ... sliding 3 cm per frame
-    assert rc.foot_skating_ratio(joints) == 1.0
+    assert foot_skating_ratio(joints) == 1.0
     joints[:, FOOT_JOINTS[1], 0] = np.arange(n) * 0.02  # 2 cm per frame is allowed
-    assert rc.foot_skating_ratio(joints) == 0.0
-    assert rc.foot_skating_ratio(joints[:1]) == 0.0
+    assert foot_skating_ratio(joints) == 0.0
+    assert foot_skating_ratio(joints[:1]) == 0.0
 
 
-def test_clean_foot_contacts_reduces_skating_and_keeps_the_legs() -> None:
+def test_foot_pinner_reduces_skating_and_keeps_the_legs() -> None:
     joints, features = _sample()
     # Skating clip: the body glides forward 4 cm per frame on top of its own motion, so every planted
-    # foot slides (what a root path faster than the legs produces).
-    skating = joints.copy()
-    skating[..., 2] += 0.04 * np.arange(len(joints))[:, None]
-    contacts = features[:, -4:] > 0.5
-    before = rc.foot_skating_ratio(skating)
-    cleaned = rc.clean_foot_contacts(skating, contacts)
-    after = rc.foot_skating_ratio(cleaned)
-    assert before > 0.5 and after < 0.5 * before, (before, after)
-    detected = rc.clean_foot_contacts(skating)  # contacts from height + speed
-    assert rc.foot_skating_ratio(detected) < before
+    # foot slides (what a root path faster than the legs produces). The pinner holds a foot at most
+    # FOOT_MAX_OFFSET from where the body puts it (no pops), so long contacts still slide in part.
+    skating = joints.copy()[: len(features)]
+    skating[..., 2] += 0.04 * np.arange(len(skating))[:, None]
+    contacts = features[:, -4:]
+    before = foot_skating_ratio(skating)
+    cleaned = FootPinner(1).apply(0, skating, contacts)
+    after = foot_skating_ratio(cleaned)
+    assert before > 0.5 and after < 0.8 * before, (before, after)
     # Pelvis, spine and arms untouched; thigh and shin lengths kept.
     untouched = [j for j in range(22) if j not in (4, 5, 7, 8, 10, 11)]
     np.testing.assert_array_equal(cleaned[:, untouched], skating[:, untouched])
-    for hip, knee, ankle, _ in rc.LEGS:
+    for hip, knee, ankle, _ in LEGS:
         for a, b in ((hip, knee), (knee, ankle)):
             np.testing.assert_allclose(
                 np.linalg.norm(cleaned[:, a] - cleaned[:, b], axis=-1),
                 np.linalg.norm(skating[:, a] - skating[:, b], axis=-1),
                 atol=1e-5,
             )
-    with pytest.raises(ValueError, match="contacts must have shape"):
-        rc.clean_foot_contacts(skating, contacts[:, :3])
 
 
-def test_clean_foot_contacts_leaves_free_motion_alone() -> None:
+def test_foot_pinner_leaves_free_motion_alone() -> None:
     joints, _ = _sample()
     lifted = joints.copy()
     lifted[..., 1] += 1.0
-    none = np.zeros((len(joints), 4), bool)
-    np.testing.assert_allclose(rc.clean_foot_contacts(lifted, none), lifted, atol=1e-5)
-    assert math.isclose(rc.foot_skating_ratio(lifted), 0.0)
+    none = np.zeros((len(joints), 4))
+    np.testing.assert_allclose(FootPinner(1).apply(0, lifted, none), lifted, atol=1e-5)
+    assert math.isclose(foot_skating_ratio(lifted), 0.0)
 
 
 def test_two_bone_ik_keeps_a_nearly_straight_knee_bending_forward() -> None:
@@ -166,7 +166,7 @@ def test_two_bone_ik_keeps_a_nearly_straight_knee_bending_forward() -> None:
     knee = np.array([[0.0, 0.5, 0.01]])
     ankle = np.array([[0.0, 0.08, 0.0]])
     goal = ankle + [[0.05, 0.1, 0.25]]
-    new_knee, new_ankle = rc.two_bone_ik(hip, knee, ankle, goal)
+    new_knee, new_ankle = two_bone_ik(hip, knee, ankle, goal)
     np.testing.assert_allclose(new_ankle, goal, atol=1e-6)
     axis = (goal - hip) / np.linalg.norm(goal - hip)
     bend = (new_knee - hip) - ((new_knee - hip) @ axis.T) * axis
@@ -175,5 +175,5 @@ def test_two_bone_ik_keeps_a_nearly_straight_knee_bending_forward() -> None:
         assert abs(np.linalg.norm(a - b) - length) < 0.01
     # A perfectly straight leg bends the way the hint (the toes) points.
     straight = np.array([[0.0, 0.49, 0.0]])
-    k2, _ = rc.two_bone_ik(hip, straight, ankle, goal, bend_hint=np.array([[1.0, 0.0, 0.0]]))
+    k2, _ = two_bone_ik(hip, straight, ankle, goal, bend_hint=np.array([[1.0, 0.0, 0.0]]))
     assert (k2 - hip)[0, 0] > 0.05

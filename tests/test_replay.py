@@ -12,11 +12,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from motion_env.clip import Motion
+from motion_env.motion.skeleton import JOINT_NAMES, NUM_JOINTS
+from motion_env.motion.types import Motion
 from motion_env.replay import corruptions, evaluate, format_report, humanoid, measure
-from motion_env.replay.evaluate import CHECKS, load_thresholds
+from motion_env.replay.checks import CHECKS, load_thresholds
 from motion_env.replay.fit import clip_rest_directions, fit_qpos
-from motion_env.skeleton import JOINT_NAMES, NUM_JOINTS
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 SAMPLE = DATA / "humanml3d_sample" / "new_joints" / "012314.npy"
@@ -30,7 +30,7 @@ def _need(path: Path) -> None:
 
 def _held_out_takes() -> list[Path]:
     """One test-split take per kind: walk, walk-turn-left, walk-turn-right, run (Bandai dataset 2)."""
-    from motion_env.dataset import split_of
+    from motion_env.data.dataset import split_of
 
     _need(BANDAI)
     picked = []
@@ -176,7 +176,7 @@ def test_report_is_json_with_frames_and_words() -> None:
 def test_held_out_real_takes_are_plausible_and_corruptions_caught() -> None:
     thresholds = load_thresholds()
     for path in _held_out_takes():
-        from motion_env.bvh import load_bvh
+        from motion_env.io.bvh import load_bvh
 
         motion = load_bvh(path)
         real = evaluate(motion, thresholds=thresholds)
@@ -188,7 +188,7 @@ def test_held_out_real_takes_are_plausible_and_corruptions_caught() -> None:
 
 def test_evaluate_of_ten_seconds_is_fast() -> None:
     _need(BANDAI)
-    from motion_env.bvh import load_bvh
+    from motion_env.io.bvh import load_bvh
 
     motion = load_bvh(BANDAI / "dataset-2_walk_normal_001.bvh.gz")  # 9 s
     motion = Motion(np.concatenate([motion.joints, motion.joints[-1:].repeat(200 - motion.num_frames, 0)]))
@@ -200,7 +200,7 @@ def test_evaluate_of_ten_seconds_is_fast() -> None:
 
 def test_tracking_keeps_a_standing_take_up() -> None:
     _need(BANDAI)
-    from motion_env.bvh import load_bvh
+    from motion_env.io.bvh import load_bvh
     from motion_env.replay.tracking import track
 
     motion = load_bvh(BANDAI / "dataset-2_raise-up-both-hands_normal_001.bvh.gz")

@@ -9,8 +9,14 @@ import numpy as np
 import pytest
 import torch
 
-from motion_env.checkpoint import check_text_encoder, text_encoder_record
-from motion_env.text import ClipTextEncoder, MiniLMEncoder, TextEncoder, jitter_embeddings, load_text_encoder
+from motion_env.models.checkpoint import check_text_encoder, text_encoder_record
+from motion_env.text.encoders import (
+    ClipTextEncoder,
+    MiniLMEncoder,
+    TextEncoder,
+    jitter_embeddings,
+    load_text_encoder,
+)
 
 
 @pytest.fixture(scope="module")

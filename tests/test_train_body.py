@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 import torch
 
-from motion_env.checkpoint import load_checkpoint, read_checkpoint
-from motion_env.gpt import GPTConfig, TokenGPT
-from motion_env.text import TextEncoder
-from motion_env.train_body import train_gpt, train_vqvae
-from motion_env.vqvae import VQVAEConfig
+from motion_env.models.checkpoint import load_checkpoint, read_checkpoint
+from motion_env.models.gpt import GPTConfig, TokenGPT
+from motion_env.models.vqvae import VQVAEConfig
+from motion_env.text.encoders import TextEncoder
+from motion_env.training.body import train_gpt, train_vqvae
 
 SAMPLE = Path(__file__).resolve().parents[2] / "shared" / "data" / "humanml3d_sample"
 TINY_VQ = VQVAEConfig(width=16, code_dim=8, codebook_size=16, depth=1)

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import torch
 
-from motion_env.checkpoint import export_checkpoint, load_checkpoint, read_checkpoint, save_checkpoint
-from motion_env.vqvae import VQVAE, VQVAEConfig
+from motion_env.models.checkpoint import export_checkpoint, load_checkpoint, read_checkpoint, save_checkpoint
+from motion_env.models.vqvae import VQVAE, VQVAEConfig
 
 SAMPLE = Path(__file__).resolve().parents[2] / "shared" / "data" / "humanml3d_sample"
 

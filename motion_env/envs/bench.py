@@ -106,7 +106,7 @@ def main(argv: list[str] | None = None) -> dict:
     if args.threads:
         torch.set_num_threads(args.threads)
 
-    from motion_env.generator import MotionGenerator
+    from motion_env.generation.generator import MotionGenerator
 
     if args.random_model:
         generator = MotionGenerator.random(seed=0, device=args.device)

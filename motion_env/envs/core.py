@@ -28,9 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from motion_env.motion import from_heading_frame, to_heading_frame
-from motion_env.paths import validate_waypoints, wrap_angle
-from motion_env.skeleton import FPS, NUM_JOINTS
+from motion_env.motion.kinematics import from_heading_frame, to_heading_frame
+from motion_env.motion.skeleton import FPS, NUM_JOINTS
+from motion_env.motion.trajectory import validate_waypoints, wrap_angle
 
 DEFAULT_TEXT_POOL: tuple[str, ...] = (
     "a person walks forward",

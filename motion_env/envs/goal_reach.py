@@ -9,7 +9,7 @@ from gymnasium import spaces
 
 from motion_env.envs.core import obstacle_clearance
 from motion_env.envs.waypoints import WaypointsEnv
-from motion_env.skeleton import NUM_JOINTS
+from motion_env.motion.skeleton import NUM_JOINTS
 
 REWARD_TYPES = ("sparse", "dense")
 _GOAL_DISTANCE = (1.5, 4.0)  # random goals lie this far (m) from the start

@@ -28,8 +28,8 @@ from motion_env.envs.core import (
     validate_text_pool,
 )
 from motion_env.envs.waypoints import make_generator, observation_space
-from motion_env.paths import validate_waypoints
-from motion_env.skeleton import FPS
+from motion_env.motion.skeleton import FPS
+from motion_env.motion.trajectory import validate_waypoints
 
 _RESET_OPTIONS = ("text", "waypoints", "start")
 

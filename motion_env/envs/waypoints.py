@@ -20,8 +20,8 @@ from motion_env.envs.core import (
     validate_text,
     validate_text_pool,
 )
-from motion_env.paths import validate_waypoints
-from motion_env.skeleton import FPS, NUM_JOINTS
+from motion_env.motion.skeleton import FPS, NUM_JOINTS
+from motion_env.motion.trajectory import validate_waypoints
 
 RENDER_STYLES = ("stick", "humanoid")
 
@@ -34,7 +34,7 @@ def make_generator(generator: Any | None, model_path: str | None, device: str) -
                 f"generator must have a stream(...) method (a MotionGenerator), got {type(generator)}"
             )
         return generator
-    from motion_env.generator import MotionGenerator
+    from motion_env.generation.generator import MotionGenerator
 
     return MotionGenerator.from_pretrained(model_path, device=device)
 
@@ -252,7 +252,7 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
                 self._view = HumanoidView(*self.render_size)
             trail = np.array(batch.trails[0])
             return self._view.draw(batch.joints[0], trail, batch.command_xz[0], batch.routes[0], obstacles)
-        from motion_env.render import render_frame
+        from motion_env.render.stick import render_frame
 
         return render_frame(
             batch.joints[0],

@@ -9,7 +9,7 @@ See :mod:`motion_env.replay.evaluate` for the checks, :mod:`.humanoid` for the m
 for rendering.
 """
 
-from motion_env.replay.evaluate import (
+from motion_env.replay.checks import (
     CHECKS,
     evaluate,
     evaluate_detailed,

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from motion_env.clip import Motion
-from motion_env.motion import heading_from_joints
-from motion_env.skeleton import FOOT_JOINTS
+from motion_env.motion.kinematics import heading_from_joints
+from motion_env.motion.skeleton import FOOT_JOINTS
+from motion_env.motion.types import Motion
 
 
 def _start(motion: Motion, start: int | None, length: int) -> int:

@@ -23,7 +23,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from motion_env.motion import qbetween, qfix, quat_from_matrix, quat_to_matrix
+from motion_env.motion.rotations import qbetween, qfix, quat_from_matrix, quat_to_matrix
+from motion_env.motion.skeleton import BONE_LENGTHS, JOINT_INDEX, NUM_JOINTS, PARENTS
 from motion_env.replay.humanoid import (
     BALL_JOINTS,
     CHILDREN,
@@ -32,7 +33,6 @@ from motion_env.replay.humanoid import (
     rest_positions,
     to_mujoco,
 )
-from motion_env.skeleton import BONE_LENGTHS, JOINT_INDEX, NUM_JOINTS, PARENTS
 
 _EPS = 1e-9
 _FORWARD = np.array([1.0, 0.0, 0.0])  # MuJoCo frame

@@ -32,7 +32,7 @@ from importlib import resources
 import mujoco
 import numpy as np
 
-from motion_env.skeleton import BONE_LENGTHS, JOINT_INDEX, JOINT_NAMES, NUM_JOINTS, PARENTS
+from motion_env.motion.skeleton import BONE_LENGTHS, JOINT_INDEX, JOINT_NAMES, NUM_JOINTS, PARENTS
 
 DEFAULT_MASS = 70.0  # kg
 

@@ -14,8 +14,8 @@ import mujoco
 import numpy as np
 from scipy.optimize import nnls
 
-from motion_env.clip import Motion
-from motion_env.motion import quat_to_axis_angle
+from motion_env.motion.rotations import quat_to_axis_angle
+from motion_env.motion.types import Motion
 from motion_env.replay.fit import clip_rest_directions, fit_qpos
 from motion_env.replay.humanoid import (
     DEFAULT_MASS,

@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import random
 import re
+
+from motion_env.text.mirror import mirror_caption
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -877,47 +879,6 @@ def captions_for(labels: ClipLabels, n: int = DEFAULT_NUM_CAPTIONS, seed: int = 
 # --------------------------------------------------------------------------------------------
 # Mirroring and tokens.
 # --------------------------------------------------------------------------------------------
-
-_SWAPS = {
-    "left": "right",
-    "right": "left",
-    "leftward": "rightward",
-    "rightward": "leftward",
-    "leftwards": "rightwards",
-    "rightwards": "leftwards",
-    "clockwise": "counterclockwise",
-    "counterclockwise": "clockwise",
-    "anticlockwise": "clockwise",
-    "counter-clockwise": "clockwise",
-    "anti-clockwise": "clockwise",
-}
-_SWAP_RE = re.compile(
-    r"\b(counter-clockwise|anti-clockwise|counterclockwise|anticlockwise|clockwise|"
-    r"leftwards|rightwards|leftward|rightward|left|right)\b"
-    # "right away", "right now", "all right" are not sides.
-    r"(?!\s+(?:away|now|after|before|then|here|there)\b)",
-    re.IGNORECASE,
-)
-
-
-def mirror_caption(text: str) -> str:
-    """Swap left and right (and clockwise / counterclockwise) for a mirrored clip.
-
-    Case is kept (``Left`` -> ``Right``); ``right away``/``right now``/``all right`` are left alone.
-    "left" as the past tense of "leave" cannot be told apart and is swapped too.
-    """
-
-    def swap(m: re.Match[str]) -> str:
-        word = m.group(1)
-        if word.lower() == "right" and re.search(r"\ball\s+$", text[: m.start()], re.IGNORECASE):
-            return word
-        new = _SWAPS[word.lower()]
-        if word.isupper():
-            return new.upper()
-        return new[0].upper() + new[1:] if word[0].isupper() else new
-
-    return _SWAP_RE.sub(swap, text)
-
 
 # The mirrored Bandai contents are the mirror images of their left-hand versions.
 for _left, _right in (

@@ -32,9 +32,9 @@ from typing import Any
 
 import numpy as np
 
-from motion_env.paths import root_path_from_joints, waypoint_errors
-from motion_env.recompose import detect_foot_contacts, foot_skating_ratio
-from motion_env.skeleton import FPS, JOINT_INDEX
+from motion_env.evaluation.metrics import detect_foot_contacts, foot_skating_ratio
+from motion_env.motion.skeleton import FPS, JOINT_INDEX
+from motion_env.motion.trajectory import root_path_from_joints, waypoint_errors
 
 MISS = 0.5  # metres: a waypoint missed by more than this counts in the location/trajectory errors
 
@@ -180,7 +180,7 @@ def heldout_cases(
 
     split: "test" for reporting; "val" for choosing between models or settings.
     """
-    from motion_env.dataset import read_split
+    from motion_env.data.dataset import read_split
 
     data_dir = Path(data_dir)
     index = _read_index(data_dir)

@@ -27,8 +27,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from motion_env.paths import validate_waypoints
-from motion_env.skeleton import FPS
+from motion_env.motion.skeleton import FPS
+from motion_env.motion.trajectory import validate_waypoints
 
 # Features per waypoint slot (see PathController.waypoint_features).
 WAYPOINT_FEATURES = 9

@@ -46,8 +46,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from motion_env import motion as mmath
-from motion_env.clip import Motion
-from motion_env.skeleton import BONE_LENGTHS, FOOT_JOINTS, FPS, JOINT_INDEX, NUM_JOINTS
+from motion_env.motion.skeleton import BONE_LENGTHS, FOOT_JOINTS, FPS, JOINT_INDEX, NUM_JOINTS
+from motion_env.motion.types import Motion
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 _CHANNEL = re.compile(r"^([XYZxyz])(position|rotation)$", re.IGNORECASE)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from motion_env.skeleton import FPS, NUM_JOINTS
+from motion_env.motion.skeleton import FPS, NUM_JOINTS
 
 
 @dataclass
@@ -101,16 +101,3 @@ class Motion:
                 )
             except ValueError as exc:
                 raise ValueError(f"{path}: {exc}") from exc
-
-
-def load_motion(path: str | Path) -> Motion:
-    """Load a `.npz` written by :meth:`Motion.save`, or any `.bvh` / `.bvh.gz` file."""
-    path = Path(path)
-    name = path.name.lower()
-    if name.endswith((".bvh", ".bvh.gz")):
-        from motion_env.bvh import load_bvh
-
-        return load_bvh(path)
-    if name.endswith(".npz"):
-        return Motion.load(path)
-    raise ValueError(f"{path}: unknown motion file type (expected .npz, .bvh or .bvh.gz)")

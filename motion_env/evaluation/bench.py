@@ -134,7 +134,7 @@ def run_bench(
     threads: int | None = None,
 ) -> dict[str, Any]:
     """Every measurement of this module on one generator; a JSON-ready dict."""
-    from motion_env.generator import MotionGenerator
+    from motion_env.generation.generator import MotionGenerator
 
     if threads is not None:
         torch.set_num_threads(int(threads))

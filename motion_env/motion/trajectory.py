@@ -1,7 +1,7 @@
-"""Root paths and waypoints: the path half of the generator, shared by training, the generator and the env.
+"""Root paths and waypoints (numpy): shared by training, the generator, the environments and evaluation.
 
 A *root path* is a ``(T, 3)`` float32 array of the pelvis ground position and heading per frame:
-``x, z`` in world metres and the yaw ``theta`` (radians, the :mod:`motion_env.motion` convention:
+``x, z`` in world metres and the yaw ``theta`` (radians, the :mod:`motion_env.motion.kinematics` convention:
 facing direction ``(sin theta, cos theta)`` in ``(x, z)``, ``theta = 0`` faces +Z). Headings in a
 root path are unwrapped (continuous across +-pi) so that differences along the path are turns.
 
@@ -15,30 +15,22 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from motion_env.motion import heading_from_joints, to_heading_frame
-from motion_env.skeleton import FPS, NUM_JOINTS
+from motion_env.motion.kinematics import heading_from_joints, to_heading_frame
+from motion_env.motion.skeleton import NUM_JOINTS
 
-# Per-token path features (see token_path_features): velocity (lateral, forward) and turn rate over
-# the token, then the same over the next second.
-D_PATH = 6
 # Gaussian sigma (frames) that takes the step-by-step sway (hips and shoulders twist with each
 # stride) out of the heading of a root path while keeping turns sharp.
 HEADING_SMOOTH_SIGMA = 5.0
 # Gaussian sigma (frames) that takes the gait out of a real pelvis path before the body GPT sees it
 # in training (see gait_free_path).
 GAIT_SMOOTH_SIGMA = 6.0
-# The long horizon of the path features: one second ahead.
-LOOKAHEAD_FRAMES = FPS
 
 __all__ = [
-    "D_PATH",
     "GAIT_SMOOTH_SIGMA",
     "HEADING_SMOOTH_SIGMA",
     "gait_free_path",
-    "LOOKAHEAD_FRAMES",
     "relative_waypoints",
     "root_path_from_joints",
-    "token_path_features",
     "validate_root_path",
     "validate_waypoints",
     "waypoint_errors",
@@ -147,47 +139,6 @@ def validate_waypoints(waypoints: np.ndarray | list) -> np.ndarray:
     return wp.astype(np.float32)
 
 
-def _average_motion(path: np.ndarray, starts: np.ndarray, horizon: int) -> np.ndarray:
-    """Mean velocity (lateral, forward; m/s) and turn rate (rad/s) from each start over `horizon` frames.
-
-    The horizon is clamped at the end of the path; the average is over the frames actually
-    available (zero at the last frame), so a clamped window still describes the speed.
-    """
-    n = path.shape[0]
-    ends = np.minimum(starts + horizon, n - 1)
-    frames = np.maximum(ends - starts, 1).astype(np.float64)[:, None]
-    disp = path[ends, :2] - path[starts, :2]  # (N, 2) world
-    local = to_heading_frame(disp, path[starts, 2])  # (N, 2) lateral, forward
-    turn = (path[ends, 2] - path[starts, 2])[:, None]  # (N, 1), path heading is unwrapped
-    return np.concatenate([local, turn], axis=1) / frames * FPS
-
-
-def token_path_features(root_path: np.ndarray, rate: int) -> np.ndarray:
-    """Per-token path features that tell the body GPT how the root moves next.
-
-    For the token starting at frame ``f = k * rate``, in the heading frame at ``f``: the mean
-    velocity (lateral, forward; m/s) and turn rate (rad/s) from ``f`` to ``f + rate``, then the same
-    from ``f`` to ``f + 20`` (one second ahead). Windows are clamped at the end of the path.
-    Velocities in m/s and turn rates in rad/s keep the values O(1) (a walk is ~1.3 m/s).
-
-    Args:
-        root_path: (T, 3) x, z, heading (wrapped or unwrapped).
-        rate: frames per token (the VQ-VAE's temporal downsampling).
-
-    Returns:
-        (ceil(T / rate), D_PATH) float32.
-    """
-    path = validate_root_path(root_path).astype(np.float64)
-    if int(rate) != rate or rate < 1:
-        raise ValueError(f"rate must be a positive integer (frames per token), got {rate!r}")
-    rate = int(rate)
-    path[:, 2] = np.unwrap(path[:, 2])
-    starts = np.arange(0, path.shape[0], rate)
-    short = _average_motion(path, starts, rate)
-    long = _average_motion(path, starts, LOOKAHEAD_FRAMES)
-    return np.concatenate([short, long], axis=1).astype(np.float32)
-
-
 def relative_waypoints(position: np.ndarray, heading: np.ndarray, waypoints_xz: np.ndarray) -> np.ndarray:
     """Waypoints seen from the character: offsets in its heading frame.
 
@@ -208,7 +159,7 @@ def relative_waypoints(position: np.ndarray, heading: np.ndarray, waypoints_xz: 
 def waypoint_errors(root_xz: np.ndarray, waypoints: np.ndarray | list) -> np.ndarray:
     """Distance (metres, XZ) between the pelvis and each waypoint.
 
-    Timed waypoints are measured at their frame (PRODUCT.md's root error; a time past the end of
+    Timed waypoints are measured at their frame (the root error of ``docs/metrics.md``; a time past the end of
     the motion is measured at the last frame, a fractional one at the nearest frame); untimed ones
     at the closest approach after the previous waypoint's frame of passage.
 

@@ -20,20 +20,21 @@ Sliding window: positions are learned for ``block_size`` tokens. When the KV cac
 re-primed from the inputs of the newest ``block_size // 2`` tokens, renumbered from position 0,
 and generation continues, so the length is unbounded. Training uses random crops whose first
 input is the real previous token when the crop starts mid-clip, which is exactly what a re-primed
-window looks like. Sampling is multinomial (optionally with temperature and nucleus top-p):
-greedy or top-k decoding collapses to a held pose, as C-T2M reports.
+window looks like. Sampling is :mod:`motion_env.models.sampling`'s (multinomial).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import torch
 import torch.nn.functional as F
 from torch import nn
 
-from motion_env.paths import D_PATH
+from motion_env.models.path_features import D_PATH
+from motion_env.models.sampling import SamplingConfig, sample_tokens
 
 
 @dataclass
@@ -156,29 +157,6 @@ class Block(nn.Module):
         a, kv = self.attn(self.ln_1(x), mask, past)
         x = x + a
         return x + self.mlp(self.ln_2(x)), kv
-
-
-def _sample(
-    logits: torch.Tensor,
-    temperature: float,
-    top_p: float | None,
-    generator: torch.Generator | list[torch.Generator] | None,
-) -> torch.Tensor:
-    """(B, V) logits -> (B,) sampled ids (multinomial, optional nucleus)."""
-    probs = F.softmax(logits.float() / temperature, dim=-1)
-    if top_p is not None and top_p < 1.0:
-        sorted_p, order = probs.sort(dim=-1, descending=True)
-        # Keep the smallest prefix whose mass reaches top_p (always at least the top token).
-        drop = sorted_p.cumsum(-1) - sorted_p >= top_p
-        sorted_p = sorted_p.masked_fill(drop, 0.0)
-        probs = torch.zeros_like(probs).scatter_(-1, order, sorted_p)
-    if isinstance(generator, (list, tuple)):
-        if len(generator) != probs.shape[0]:
-            raise ValueError(f"got {len(generator)} generators for a batch of {probs.shape[0]}")
-        return torch.cat(
-            [torch.multinomial(p[None], 1, generator=g)[0] for p, g in zip(probs, generator, strict=True)]
-        )
-    return torch.multinomial(probs, 1, generator=generator)[:, 0]
 
 
 class TokenGPT(nn.Module):
@@ -421,43 +399,41 @@ class TokenGPT(nn.Module):
         return logits, cache
 
     @torch.no_grad()
+    @torch.no_grad()
     def generate(
         self,
         text_emb: torch.Tensor,
         path_feats: torch.Tensor,
         num_tokens: int,
-        temperature: float = 1.0,
-        top_p: float | None = None,
-        generator: torch.Generator | list[torch.Generator] | None = None,
-        guidance: float = 1.0,
+        generators: Sequence[torch.Generator],
+        sampling: SamplingConfig | None = None,
     ) -> torch.Tensor:
         """Sample token sequences of any length (the window slides past block_size).
+
+        This is what whole-clip generation runs (:mod:`motion_env.generation.pipeline`); the stream
+        runs the same :meth:`step` and :func:`~motion_env.models.sampling.sample_tokens` one token
+        at a time.
 
         Args:
             text_emb: (B, text_dim) caption embeddings.
             path_feats: (B, >= num_tokens, path_dim) path features of each token to generate.
             num_tokens: tokens to sample.
-            temperature: softmax temperature (> 0).
-            top_p: optional nucleus mass in (0, 1].
-            generator: one torch.Generator for the batch, or one per row (then each row's samples
-                equal those of generating it alone with that generator).
-            guidance: classifier-free guidance scale (1 = off).
+            generators: one torch.Generator per row (each row's samples then equal those of
+                generating it alone with that generator).
+            sampling: temperature, nucleus and guidance (default: the model's distribution).
 
         Returns:
-            (B, num_tokens) long token ids.
+            (B, num_tokens) long token ids, on the CPU.
         """
-        if temperature <= 0:
-            raise ValueError(f"temperature must be > 0 (greedy decoding collapses motion), got {temperature}")
-        if top_p is not None and not 0.0 < top_p <= 1.0:
-            raise ValueError(f"top_p must be in (0, 1], got {top_p}")
+        sampling = sampling or SamplingConfig()
         B = text_emb.shape[0]
         if path_feats.ndim != 3 or path_feats.shape[0] != B or path_feats.shape[1] < num_tokens:
             raise ValueError(f"path_feats must be ({B}, >= {num_tokens}, D), got {tuple(path_feats.shape)}")
-        cache = self.new_cache(text_emb, guidance)
-        out = torch.zeros(B, num_tokens, dtype=torch.long, device=text_emb.device)
+        cache = self.new_cache(text_emb, sampling.guidance)
+        out = torch.zeros(B, num_tokens, dtype=torch.long)
         prev = None
         for i in range(num_tokens):
             logits, cache = self.step(cache, prev, path_feats[:, i])
-            prev = _sample(logits, temperature, top_p, generator)
-            out[:, i] = prev
+            out[:, i] = sample_tokens(logits, generators, sampling)
+            prev = out[:, i].to(text_emb.device)
         return out

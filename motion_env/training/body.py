@@ -24,7 +24,7 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
-from motion_env.checkpoint import (
+from motion_env.models.checkpoint import (
     check_text_encoder,
     config_from_dict,
     load_checkpoint,
@@ -32,8 +32,8 @@ from motion_env.checkpoint import (
     save_checkpoint,
     text_encoder_record,
 )
-from motion_env.gpt import GPTConfig, TokenGPT
-from motion_env.vqvae import VQVAE, VQVAEConfig
+from motion_env.models.gpt import GPTConfig, TokenGPT
+from motion_env.models.vqvae import VQVAE, VQVAEConfig
 
 
 def _lr_at(step: int, total: int, peak: float, warmup: int) -> float:
@@ -45,7 +45,7 @@ def _lr_at(step: int, total: int, peak: float, warmup: int) -> float:
 
 
 def _load_split(data_dir: Path, split: str) -> list[Any]:
-    from motion_env.dataset import read_split
+    from motion_env.data.dataset import read_split
 
     clips = read_split(data_dir, split)
     if not clips:
@@ -54,7 +54,7 @@ def _load_split(data_dir: Path, split: str) -> list[Any]:
 
 
 def _stats(data_dir: Path) -> tuple[np.ndarray, np.ndarray]:
-    from motion_env.dataset import load_stats
+    from motion_env.data.dataset import load_stats
 
     mean, std = load_stats(data_dir)
     return np.asarray(mean, np.float32), np.asarray(std, np.float32)
@@ -113,7 +113,7 @@ def evaluate_vqvae(
         positions, so root drift counts); "mpjpe_local_cm": the same with the pelvis aligned per
         frame; "feature_l1": mean |error| of the normalised features; "codes_used": distinct codes.
     """
-    from motion_env.motion import features_to_joints
+    from motion_env.motion.features import features_to_joints
 
     model.eval()
     rate = model.rate
@@ -256,7 +256,8 @@ class _TokenSet:
     """Every clip of a split as tokens + per-token path features + caption indices."""
 
     def __init__(self, clips: list[Any], vq: VQVAE, mean: np.ndarray, std: np.ndarray, device: Any) -> None:
-        from motion_env.paths import gait_free_path, root_path_from_joints, token_path_features
+        from motion_env.models.path_features import token_path_features
+        from motion_env.motion.trajectory import gait_free_path, root_path_from_joints
 
         rate = vq.rate
         self.codes: list[torch.Tensor] = []
@@ -396,7 +397,7 @@ def train_gpt(
         final metrics: "step", "loss", "seconds_per_step", "val_accuracy", "val_perplexity",
         "train_accuracy", "train_perplexity" (the last two on the train clips, for comparison).
     """
-    from motion_env.text import DEFAULT_TEXT_ENCODER, jitter_embeddings, load_text_encoder
+    from motion_env.text.encoders import DEFAULT_TEXT_ENCODER, jitter_embeddings, load_text_encoder
 
     data_dir, out_path = Path(data_dir), Path(out_path)
     vq, vq_ckpt = load_checkpoint(vqvae_path, "vqvae", VQVAEConfig, VQVAE, device)

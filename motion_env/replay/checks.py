@@ -31,11 +31,11 @@ from pathlib import Path
 import numpy as np
 from scipy.ndimage import minimum_filter1d
 
-from motion_env.clip import Motion
-from motion_env.motion import resample
+from motion_env.motion.kinematics import resample
+from motion_env.motion.skeleton import FPS, JOINT_NAMES
+from motion_env.motion.types import Motion
 from motion_env.replay.humanoid import BALL_JOINTS, DEFAULT_MASS
 from motion_env.replay.kinematic import CONTACT_HEIGHT, Measurements, measure
-from motion_env.skeleton import FPS, JOINT_NAMES
 
 GRAVITY = 9.81
 CHECKS: tuple[str, ...] = (

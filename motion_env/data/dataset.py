@@ -53,17 +53,16 @@ from pathlib import Path
 
 import numpy as np
 
-from motion_env.captions import (
+from motion_env.data.captions import (
     DEFAULT_NUM_CAPTIONS,
     ClipLabels,
     caption_tokens,
     captions_for,
     file_stem,
     labels_for_file,
-    mirror_caption,
     parse_cmu_index,
 )
-from motion_env.skeleton import (
+from motion_env.motion.skeleton import (
     FEATURE_DIM,
     FOOT_CONTACT,
     FPS,
@@ -75,6 +74,7 @@ from motion_env.skeleton import (
     ROOT_Y,
     ROT6D,
 )
+from motion_env.text.mirror import mirror_caption
 
 SPLITS: tuple[str, ...] = ("train", "val", "test")
 SPLIT_FRACTIONS: tuple[float, float, float] = (0.85, 0.075, 0.075)
@@ -280,7 +280,7 @@ class _Job:
 def _process(job: _Job) -> dict:
     """Import one file and write its clip (and mirror). Runs in a worker process."""
     from motion_env import motion as mmath
-    from motion_env.bvh import load_bvh
+    from motion_env.io.bvh import load_bvh
 
     result: dict = {"name": job.name, "status": "ok", "frames": 0, "stats": None}
     try:

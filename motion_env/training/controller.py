@@ -25,10 +25,10 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from motion_env.controller import ControllerConfig, PathController, to_heading_frame_torch
-from motion_env.paths import root_path_from_joints, waypoint_errors
-from motion_env.skeleton import FPS
-from motion_env.text import DEFAULT_TEXT_ENCODER, jitter_embeddings
+from motion_env.models.controller import ControllerConfig, PathController, to_heading_frame_torch
+from motion_env.motion.skeleton import FPS
+from motion_env.motion.trajectory import root_path_from_joints, waypoint_errors
+from motion_env.text.encoders import DEFAULT_TEXT_ENCODER, jitter_embeddings
 
 CHECKPOINT_KIND = "controller"
 # A frame is "still" below this root speed (m/s): its turn target is zero (no spin on the spot).
@@ -253,7 +253,7 @@ def evaluate_controller(
     with `snap`, after :func:`motion_env.recompose.snap_to_waypoints`. Only waypoints inside the
     window count.
     """
-    from motion_env.recompose import snap_to_waypoints
+    from motion_env.generation.recompose import snap_to_waypoints
 
     if mode not in MODES or mode == "none":
         raise ValueError(f"mode must be one of {[m for m in MODES if m != 'none']}, got {mode!r}")
@@ -291,71 +291,6 @@ def evaluate_controller(
     }
     if snap:
         out["root_error_snapped_cm"] = float(np.mean(snapped) * 100)
-    return out
-
-
-@torch.no_grad()
-def evaluate_recompose(
-    model: PathController,
-    clips: Sequence[Any],
-    encode: Callable[[list[str]], Any],
-    num_clips: int = 200,
-    max_frames: int = 160,
-    seed: int = 0,
-) -> dict[str, float]:
-    """Foot skating and root error of real bodies recomposed onto controller paths.
-
-    For each clip (``joints``, ``features``, ``captions``): timed waypoints 1-3 s apart from its
-    own root path, a controller rollout from its first frame, then the real local pose recomposed
-    onto the raw path, onto the snapped path, and the latter with the foot-contact cleanup (contacts
-    from the features). This isolates what the path half does to the feet (the body GPT is not
-    involved). Skating ratios are frame-weighted over the clips.
-    """
-    from motion_env.recompose import (
-        clean_foot_contacts,
-        foot_skating_ratio,
-        local_pose_from_joints,
-        recompose,
-        snap_to_waypoints,
-    )
-
-    rng = np.random.default_rng(seed)
-    order = rng.permutation(len(clips))[:num_clips]
-    sums: dict[str, float] = {}
-    weight, errors, errors_snapped = 0.0, [], []
-    for i in order:
-        clip = clips[int(i)]
-        joints = np.asarray(clip.joints[:max_frames], dtype=np.float32)
-        n = len(joints)
-        if n < 24:
-            continue
-        real = root_path_from_joints(joints)
-        wp, frames = _sample_waypoints(real, 0, n, "timed", rng)
-        wp = wp[frames < n]
-        if len(wp) == 0:
-            continue
-        emb = torch.as_tensor(np.asarray(encode([clip.captions[0]]))[0], dtype=torch.float32)
-        path = model.rollout(emb, wp, n, start=real[0])
-        snapped = snap_to_waypoints(path, wp)
-        local = local_pose_from_joints(joints, real)
-        contacts = np.asarray(clip.features)[:n, -4:]
-        on_raw = recompose(local, path)
-        on_snapped = recompose(local, snapped)
-        variants = {
-            "real": joints,
-            "recomposed": on_raw,
-            "recomposed_snapped": on_snapped,
-            "recomposed_snapped_cleaned": clean_foot_contacts(on_snapped, contacts[: n - 1]),
-        }
-        for name, motion in variants.items():
-            sums[name] = sums.get(name, 0.0) + foot_skating_ratio(motion) * (n - 1)
-        weight += n - 1
-        errors.extend(waypoint_errors(on_raw[:, 0, [0, 2]], wp).tolist())
-        errors_snapped.extend(waypoint_errors(on_snapped[:, 0, [0, 2]], wp).tolist())
-    out = {f"skating_{k}": v / max(weight, 1.0) for k, v in sums.items()}
-    out["root_error_cm"] = float(np.mean(errors) * 100)
-    out["root_error_snapped_cm"] = float(np.mean(errors_snapped) * 100)
-    out["num_waypoints"] = float(len(errors))
     return out
 
 
@@ -423,7 +358,7 @@ def fit(
 
 def load_controller(path: str | Path, device: str | torch.device = "cpu") -> tuple[PathController, dict]:
     """A trained controller from its checkpoint: (model in eval mode, the checkpoint dict)."""
-    from motion_env.checkpoint import load_checkpoint
+    from motion_env.models.checkpoint import load_checkpoint
 
     return load_checkpoint(path, CHECKPOINT_KIND, ControllerConfig, PathController, device)
 
@@ -468,9 +403,14 @@ def train_controller(
         raw, ``root_error_snapped_cm`` after snapping, location/trajectory error), the same with
         untimed waypoints (``untimed_*``, closest approach), and ``step``.
     """
-    from motion_env.checkpoint import config_from_dict, read_checkpoint, save_checkpoint, text_encoder_record
-    from motion_env.dataset import read_split
-    from motion_env.text import load_text_encoder
+    from motion_env.data.dataset import read_split
+    from motion_env.models.checkpoint import (
+        config_from_dict,
+        read_checkpoint,
+        save_checkpoint,
+        text_encoder_record,
+    )
+    from motion_env.text.encoders import load_text_encoder
 
     torch.manual_seed(seed)
     out_path = Path(out_path)

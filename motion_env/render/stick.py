@@ -23,9 +23,9 @@ from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Rectangle
 
-from motion_env.clip import Motion
-from motion_env.motion import heading_from_joints
-from motion_env.skeleton import CHAINS, NUM_JOINTS
+from motion_env.motion.kinematics import heading_from_joints
+from motion_env.motion.skeleton import CHAINS, NUM_JOINTS
+from motion_env.motion.types import Motion
 
 VIDEO_SUFFIXES = (".mp4", ".gif")
 

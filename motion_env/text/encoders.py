@@ -180,7 +180,7 @@ class SidedEncoder(TextEncoder):
     @torch.no_grad()
     def encode(self, texts: Sequence[str]) -> torch.Tensor:
         """(N, 2 * base dim): [base embedding (unit norm), side vector (norm <= 1)]."""
-        from motion_env.captions import mirror_caption
+        from motion_env.text.mirror import mirror_caption
 
         texts = _check_texts(texts)
         emb = self.base.encode(texts)

@@ -1,7 +1,8 @@
 """Streaming generation: B characters, one frame per step, steerable between frames.
 
-A :class:`MotionStream` (from :meth:`motion_env.generator.MotionGenerator.stream`) runs the
-generator's pipeline causally, one token (``rate`` frames) at a time:
+A :class:`MotionStream` (from :meth:`motion_env.MotionGenerator.stream`) is the second driver of
+:class:`~motion_env.generation.pipeline.Pipeline`: it runs the stages causally, one token (``rate``
+frames) at a time:
 
 - Look-ahead: a token covering frames ``f .. f + rate - 1`` needs the root path up to frame
   ``f + path_horizon`` (20 frames, one second: the long window of the path features), so the
@@ -15,7 +16,7 @@ generator's pipeline causally, one token (``rate`` frames) at a time:
 - Tokens are sampled one at a time with the GPT's KV cache; the VQ-VAE decodes the newest token
   from its finite context (:meth:`motion_env.vqvae.VQVAE.decode_stream`); the recompose runs on a
   short window of recent frames, of which only the new ones are emitted; the foot cleanup
-  (:class:`motion_env.generator.FootPinner`) is causal, frame by frame, as for whole clips.
+  (:class:`~motion_env.generation.feet.FootPinner`) is causal, frame by frame, as for whole clips.
 - Snapping is causal too: the residual to each waypoint inside the look-ahead is spread linearly
   from the last decoded frame to the waypoint's frame.
 """
@@ -24,29 +25,27 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import fields, replace
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import torch
 
-from motion_env.controller import ControllerState
-from motion_env.generator import (
-    FootPinner,
-    _check_start,
-    _check_starts,
-    _check_text,
-    _check_texts,
-    _per_row_waypoints,
-    _resolve_seed,
-    _route_anchors,
-    _row_generator,
-    _sample_rows,
+from motion_env.generation.feet import FootPinner
+from motion_env.generation.pipeline import CONTROLLER_STREAM, TOKEN_STREAM, Pipeline, row_generator
+from motion_env.generation.recompose import route_anchors, spread_residuals
+from motion_env.generation.request import (
+    check_route,
+    check_start,
+    check_starts,
+    check_text,
+    check_texts,
+    per_row_waypoints,
+    resolve_seed,
 )
-from motion_env.paths import D_PATH, token_path_features, validate_waypoints
-from motion_env.skeleton import FEATURE_DIM, FOOT_CONTACT, NUM_JOINTS
-
-if TYPE_CHECKING:
-    from motion_env.generator import MotionGenerator
+from motion_env.models.controller import ControllerState
+from motion_env.models.path_features import D_PATH, token_path_features
+from motion_env.models.sampling import sample_tokens
+from motion_env.motion.skeleton import FEATURE_DIM, FOOT_CONTACT, NUM_JOINTS
 
 __all__ = ["MotionStream"]
 
@@ -101,21 +100,21 @@ class MotionStream:
 
     def __init__(
         self,
-        generator: MotionGenerator,
+        pipeline: Pipeline,
         texts: Sequence[str],
         waypoints: Any = None,
         starts: np.ndarray | None = None,
         seed: int | None = None,
     ) -> None:
-        g = self._gen = generator
-        texts = _check_texts(texts)
+        g = self._pipe = pipeline
+        texts = check_texts(texts)
         b = self.batch_size = len(texts)
         self._texts = list(texts)
-        self._routes = _per_row_waypoints(waypoints, b)
-        start_arr = _check_starts(starts, b)
-        self.seed = _resolve_seed(seed)
-        self._ctrl_gens = [_row_generator(self.seed, i, 0) for i in range(b)]
-        self._tok_gens = [_row_generator(self.seed, i, 1) for i in range(b)]
+        self._routes = per_row_waypoints(waypoints, b)
+        start_arr = check_starts(starts, b)
+        self.seed = resolve_seed(seed)
+        self._ctrl_gens = [row_generator(self.seed, i, CONTROLLER_STREAM) for i in range(b)]
+        self._tok_gens = [row_generator(self.seed, i, TOKEN_STREAM) for i in range(b)]
         self._rate = rate = g.rate
         self._horizon = g.path_horizon
         self._context = g.vqvae.decoder_context_tokens
@@ -149,7 +148,7 @@ class MotionStream:
 
         emb = g.encode_text(self._texts)
         self._cache = g.gpt.new_cache(emb, g.sampling.guidance)
-        self._front = g._init_controller(emb, self._routes, start_arr, self._ctrl_gens)
+        self._front = g.init_controller(emb, self._routes, start_arr, self._ctrl_gens)
         rows = torch.arange(b, device=dev)
         self._record(rows, self._front)
         self._snapped[:, 0] = start_arr
@@ -180,9 +179,9 @@ class MotionStream:
 
     def set_text(self, text: str, index: int | None = None) -> None:
         """Change the caption of one character (`index`) or of all (None) from the next token on."""
-        text = _check_text(text)
+        text = check_text(text)
         rows = self._rows(index)
-        g = self._gen
+        g = self._pipe
         emb = g.encode_text([text])  # (1, D)
         self._front = g.controller.set_text(
             self._front, emb.expand(len(rows), -1) if index is None else emb[0], index
@@ -199,7 +198,7 @@ class MotionStream:
             waypoints: (K, 2)/(K, 3) world x, z and optionally the frame index in that character's
                 episode; None removes the route (the character follows the caption).
         """
-        route = None if waypoints is None else validate_waypoints(waypoints)
+        route = check_route(waypoints)
         for i in self._rows(index):
             self._routes[i] = None if route is None else route.copy()
             self._dirty[i] = self._route_changed[i] = True
@@ -213,12 +212,12 @@ class MotionStream:
     ) -> None:
         """Start a new episode for one character (frame 0 at `start`); the others go on."""
         (i,) = self._rows(index)
-        text = _check_text(text)
-        route = None if waypoints is None else validate_waypoints(waypoints)
-        start_arr = np.zeros(3, np.float32) if start is None else _check_start(start)
-        g = self._gen
+        text = check_text(text)
+        route = check_route(waypoints)
+        start_arr = np.zeros(3, np.float32) if start is None else check_start(start)
+        g = self._pipe
         emb = g.encode_text([text])
-        sub = g._init_controller(emb, [route], start_arr[None], [self._ctrl_gens[i]])
+        sub = g.init_controller(emb, [route], start_arr[None], [self._ctrl_gens[i]])
         rows = torch.tensor([i], device=g.device)
         self._front = _put(self._front, rows, sub)
         self._record(rows, sub)
@@ -261,7 +260,7 @@ class MotionStream:
 
     def _restore(self, i: int) -> None:
         """Roll character i's controller back to its last decoded frame (after a caption/route change)."""
-        g = self._gen
+        g = self._pipe
         anchor = max(int(self._decoded[i]) - 1, 0)
         slot = anchor % self._ring
         rows = torch.tensor([i], device=g.device)
@@ -283,7 +282,7 @@ class MotionStream:
 
     def _advance(self, rows: np.ndarray, targets: np.ndarray) -> None:
         """Step the controller of `rows` until each reaches its target frame, recording every frame."""
-        g = self._gen
+        g = self._pipe
         frames = self._front.frame.cpu().numpy()[rows]
         need = targets - frames
         for n in np.unique(need[need > 0]):
@@ -298,12 +297,9 @@ class MotionStream:
         """Character i's root path over frames anchor..last, continuing its committed path.
 
         The controller's path is shifted so that the anchor frame sits where it was emitted, then
-        bent through the waypoints ahead that fall inside the window: timed ones after the anchor,
-        untimed ones that the path passes within SNAP_RADIUS (:func:`_route_anchors`).
-        The residual at each is spread linearly from the previous one (the anchor: zero) and held
-        after the last. Linear rather than :func:`snap_to_waypoints`' PCHIP curve because the
-        window moves on by a token at a time: a linear share of the residual committed with each
-        token leaves the same rate for the rest, so the correction per frame stays constant.
+        bent (:func:`~motion_env.generation.recompose.spread_residuals`) through the waypoints
+        ahead that fall inside the window: timed ones after the anchor, untimed ones that the
+        path passes within SNAP_RADIUS (:func:`~motion_env.generation.recompose.route_anchors`).
         """
         frames = np.arange(anchor, last + 1)
         raw = self._raw[i, frames % self._ring].astype(np.float64)
@@ -313,18 +309,12 @@ class MotionStream:
         if route is None:
             return path.astype(np.float32)
         queue = int(self._h_queue[i, anchor % self._ring])
-        anchors = _route_anchors(path, route[queue:], first=anchor, open_end=True)
-        if len(anchors):
-            keys = np.concatenate([[0.0], anchors[:, 2]])
-            res = np.concatenate([np.zeros((1, 2)), anchors[:, :2] - path[anchors[:, 2].astype(int), :2]])
-            t = np.arange(len(path))
-            path[:, 0] += np.interp(t, keys, res[:, 0])
-            path[:, 1] += np.interp(t, keys, res[:, 1])
-        return path.astype(np.float32)
+        anchors = route_anchors(path, route[queue:], first=anchor, open_end=True)
+        return spread_residuals(path, anchors).astype(np.float32)
 
     def _produce(self, rows: np.ndarray) -> None:
         """Decode the next token of each character in `rows` and fill their frame buffers."""
-        g, rate, ring, horizon = self._gen, self._rate, self._ring, self._horizon
+        g, rate, ring, horizon = self._pipe, self._rate, self._ring, self._horizon
         for i in rows[self._dirty[rows]]:
             self._restore(int(i))
         first = self._decoded[rows]  # (N,) first frame of the new token
@@ -351,7 +341,7 @@ class MotionStream:
             self._cache.valid[idle_t, -1] = False
             self._cache.pos[idle_t] -= 1
         rows_t = torch.as_tensor(rows, device=logits.device)
-        tokens = _sample_rows(logits[rows_t], [self._tok_gens[i] for i in rows], g.sampling)
+        tokens = sample_tokens(logits[rows_t], [self._tok_gens[i] for i in rows], g.sampling)
         self._prev[torch.as_tensor(rows)] = tokens
         for n, i in enumerate(rows):
             self._codes[i] = (self._codes[i] + [int(tokens[n])])[-self._context :]
@@ -362,7 +352,7 @@ class MotionStream:
         for length in np.unique(lengths):
             sel = np.nonzero(lengths == length)[0]
             codes = torch.tensor([self._codes[rows[s]] for s in sel], device=g.device)
-            body[sel] = g._denormalise(g.vqvae.decode_stream(codes))
+            body[sel] = g.decode_latest(codes)
 
         for n, i in enumerate(rows):
             f = int(first[n])
@@ -372,7 +362,7 @@ class MotionStream:
             past = np.arange(begin, f)
             feats = self._features[i, np.arange(begin, f + rate) % ring]
             root = np.concatenate([self._snapped[i, past % ring], ahead[n]])  # frames begin..f+horizon
-            joints, path = g._compose(feats, root, f + rate - begin)
+            joints, path = g.compose(feats, root, f + rate - begin)
             self._snapped[i, frames % ring] = ahead[n][:rate]
             self._buffer[i] = self._feet.apply(int(i), joints[-rate:], body[n][:, FOOT_CONTACT])
             self._buffer_root[i] = path[-rate:]

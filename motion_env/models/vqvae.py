@@ -24,7 +24,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from motion_env.skeleton import FEATURE_DIM, NUM_JOINTS, RIC
+from motion_env.motion.skeleton import FEATURE_DIM, NUM_JOINTS, RIC
 
 
 @dataclass

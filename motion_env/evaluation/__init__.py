@@ -1,0 +1,1 @@
+"""Evaluation: metric definitions (``docs/metrics.md``), the route-following suite and the bench."""

@@ -1,0 +1,129 @@
+"""Foot cleanup: feet the decoder says are planted stay planted (whole clips and the stream alike).
+
+:class:`FootPinner` is causal (frame by frame, no future frames), so the stream and whole clips
+share it; :func:`two_bone_ik` re-solves a leg for a moved ankle.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["FOOT_BLEND", "FOOT_MAX_OFFSET", "LEGS", "FootPinner", "two_bone_ik"]
+
+# Legs as (hip, knee, ankle, toe).
+LEGS: tuple[tuple[int, int, int, int], ...] = ((1, 4, 7, 10), (2, 5, 8, 11))
+# Frames over which a released foot's correction fades out.
+FOOT_BLEND = 3
+# The largest correction (m) a pinned foot gets; a foot the body drags farther (its stride does
+# not match the path's speed) slides along with it, so the leg never snaps back from afar.
+FOOT_MAX_OFFSET = 0.25
+
+
+def two_bone_ik(
+    hip: np.ndarray,
+    knee: np.ndarray,
+    ankle: np.ndarray,
+    target: np.ndarray,
+    bend_hint: np.ndarray | None = None,
+) -> tuple:
+    """Analytic two-bone IK per frame: hip fixed, bone lengths kept, the ankle moved to the target.
+
+    The knee keeps the side it bent to, measured against the leg's *original* hip-ankle axis:
+    measured against the new axis, a nearly straight leg's bend direction is noise, and the knee
+    can flip backwards or sideways (hip twists of 90 degrees on runs). An optional `bend_hint`
+    (e.g. the direction the toes point) adds a 5 cm bias, so a straight leg bends that way.
+
+    All (N, 3); returns (new knee, new ankle).
+    """
+    l1 = np.linalg.norm(knee - hip, axis=-1)
+    l2 = np.linalg.norm(ankle - knee, axis=-1)
+    to = target - hip
+    d = np.linalg.norm(to, axis=-1)
+    d_clamped = np.clip(d, np.abs(l1 - l2) + 1e-4, l1 + l2 - 1e-4)
+    u = to / np.maximum(d, 1e-9)[:, None]
+    leg = ankle - hip
+    axis0 = leg / np.maximum(np.linalg.norm(leg, axis=-1, keepdims=True), 1e-9)
+    bend = (knee - hip) - ((knee - hip) * axis0).sum(-1, keepdims=True) * axis0
+    if bend_hint is not None:
+        hint_n = np.linalg.norm(bend_hint, axis=-1, keepdims=True)
+        bend = bend + 0.05 * bend_hint / np.maximum(hint_n, 1e-9)
+    pole = bend - (bend * u).sum(-1, keepdims=True) * u
+    pole_n = np.linalg.norm(pole, axis=-1, keepdims=True)
+    # A straight leg with no hint has no bend plane: bend the knee along the original shin.
+    fallback = (ankle - knee) - ((ankle - knee) * u).sum(-1, keepdims=True) * u
+    pole = np.where(pole_n > 1e-6, pole / np.maximum(pole_n, 1e-9), fallback)
+    pole = pole / np.maximum(np.linalg.norm(pole, axis=-1, keepdims=True), 1e-9)
+    a = (l1**2 - l2**2 + d_clamped**2) / (2 * d_clamped)
+    h = np.sqrt(np.maximum(l1**2 - a**2, 0.0))
+    new_knee = hip + a[:, None] * u + h[:, None] * pole
+    new_ankle = hip + d_clamped[:, None] * u
+    return new_knee, new_ankle
+
+
+class FootPinner:
+    """Causal foot cleanup for B characters, frame by frame (whole clips and streaming alike).
+
+    A foot flagged in contact by the decoder is pinned where it is shown when the contact starts
+    (its ankle, or its toe while only the toe touches, as the heel lifts) and the leg is re-solved
+    with :func:`two_bone_ik`. The pin follows the foot when the body drags
+    it more than FOOT_MAX_OFFSET away, and after the contact the correction fades out over
+    FOOT_BLEND frames. It never needs future frames, and it keeps every joint within
+    FOOT_MAX_OFFSET of the decoded pose: pins the leg cannot reach make no pops.
+
+    Args:
+        batch: B characters; the state of each carries over from one :meth:`apply` to the next.
+    """
+
+    def __init__(self, batch: int) -> None:
+        self.pins = np.full((batch, len(LEGS), 2, 2), np.nan)  # pinned ankle / toe XZ, NaN: free
+        self.offset = np.zeros((batch, len(LEGS), 2))  # correction of the last frame
+        self.released = np.zeros((batch, len(LEGS), 2))  # correction when the contact ended
+        self.since = np.full((batch, len(LEGS)), FOOT_BLEND + 1)  # frames since then
+
+    def reset(self, i: int) -> None:
+        """Forget character i's feet (a new episode)."""
+        self.pins[i] = np.nan
+        self.offset[i] = self.released[i] = 0.0
+        self.since[i] = FOOT_BLEND + 1
+
+    def apply(self, i: int, joints: np.ndarray, contacts: np.ndarray) -> np.ndarray:
+        """Character i's next frames: (n, 22, 3) joints and (n, 4) contact channels -> (n, 22, 3).
+
+        contacts: the decoded features' foot contacts (left ankle, left toe, right ankle, right
+        toe; > 0.5 = in contact).
+        """
+        out = joints.astype(np.float64)
+        flags = np.asarray(contacts) > 0.5
+        for leg, (hip, knee, ankle, toe) in enumerate(LEGS):
+            offsets = np.zeros((len(out), 2))
+            for t in range(len(out)):
+                # The ankle's flag wins; the toe alone is pinned while the heel lifts.
+                kind = 0 if flags[t, 2 * leg] else 1 if flags[t, 2 * leg + 1] else None
+                for other in {0, 1} - {kind}:
+                    self.pins[i, leg, other] = np.nan
+                if kind is None:
+                    self.since[i, leg] += 1
+                    offset = self.released[i, leg] * max(0.0, 1.0 - self.since[i, leg] / (FOOT_BLEND + 1))
+                else:
+                    xz = out[t, (ankle, toe)[kind], [0, 2]]
+                    if np.isnan(self.pins[i, leg, kind, 0]):
+                        self.pins[i, leg, kind] = xz + self.offset[i, leg]  # where it is shown now
+                    offset = self.pins[i, leg, kind] - xz
+                    norm = np.linalg.norm(offset)
+                    if norm > FOOT_MAX_OFFSET:
+                        offset *= FOOT_MAX_OFFSET / norm
+                        self.pins[i, leg, kind] = xz + offset  # the pin slides with the foot
+                    self.released[i, leg], self.since[i, leg] = offset, 0
+                self.offset[i, leg] = offsets[t] = offset
+            moved = np.nonzero(offsets.any(axis=1))[0]  # frames left alone keep their exact pose
+            if not len(moved):
+                continue
+            goal = out[moved, ankle].copy()
+            goal[:, [0, 2]] += offsets[moved]
+            toes = out[moved, toe] - out[moved, ankle]
+            toes[:, 1] = 0.0  # a knee points the way the foot does
+            leg = out[moved, hip], out[moved, knee], out[moved, ankle]
+            new_knee, new_ankle = two_bone_ik(*leg, goal, toes)
+            out[moved, toe] += new_ankle - out[moved, ankle]
+            out[moved, knee], out[moved, ankle] = new_knee, new_ankle
+        return out.astype(np.float32)

@@ -1,0 +1,445 @@
+"""MotionGenerator: caption + waypoints -> motion, as whole clips or streamed frame by frame.
+
+The whole-clip driver of :mod:`motion_env.generation.pipeline`: it checks a request once
+(:mod:`motion_env.generation.request`) and runs every stage over the whole clip; :meth:`stream`
+hands the same pipeline to :class:`~motion_env.generation.streaming.MotionStream`, which runs the
+stages one token at a time. It also loads and saves the weights.
+
+Weights: a directory holding ``vqvae.pt`` (with the dataset Mean/Std), ``gpt.pt`` and
+``controller.pt`` (:mod:`motion_env.models.checkpoint` files) and optionally ``sampling.json``; the
+shipped default is ``motion_env/weights/`` inside the package.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import asdict
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import torch
+
+from motion_env.generation.feet import FootPinner
+from motion_env.generation.pipeline import Pipeline
+from motion_env.generation.request import (
+    BatchRequest,
+    check_batch_request,
+    check_num_frames,
+    check_route,
+    check_start,
+    check_text,
+    check_texts,
+    resolve_seed,
+)
+from motion_env.models.checkpoint import check_text_encoder, load_checkpoint, save_checkpoint
+from motion_env.models.controller import ControllerConfig, PathController
+from motion_env.models.gpt import GPTConfig, TokenGPT
+from motion_env.models.normalizer import Normalizer
+from motion_env.models.sampling import SamplingConfig
+from motion_env.models.vqvae import VQVAE, VQVAEConfig
+from motion_env.motion.skeleton import FEATURE_DIM, FOOT_CONTACT, FPS, NUM_JOINTS
+from motion_env.motion.types import Motion
+
+if TYPE_CHECKING:
+    from motion_env.generation.streaming import MotionStream
+
+__all__ = ["DEFAULT_WEIGHTS", "RANDOM_MODEL", "MotionGenerator", "SamplingConfig"]
+
+# The shipped model, found relative to the package.
+DEFAULT_WEIGHTS = Path(__file__).resolve().parents[1] / "weights"
+WEIGHT_FILES = {"vqvae": "vqvae.pt", "gpt": "gpt.pt", "controller": "controller.pt"}
+SAMPLING_FILE = "sampling.json"
+# `from_pretrained(RANDOM_MODEL)` gives the untrained test model (:meth:`MotionGenerator.random`).
+RANDOM_MODEL = "random"
+
+
+def _rest_pose_features() -> np.ndarray:
+    """(263,) features of the canonical skeleton standing in its rest pose (the random model's mean)."""
+    from motion_env.motion.features import joints_to_features
+    from motion_env.motion.kinematics import bone_offsets, forward_kinematics
+
+    rots = np.zeros((2, NUM_JOINTS, 4))
+    rots[..., 0] = 1.0  # identity quaternions (w, x, y, z)
+    height = -float(bone_offsets()[[2, 5, 8], 1].sum())  # hip + knee + ankle drop of the right leg
+    joints = forward_kinematics(np.array([[0.0, height, 0.0]] * 2), rots)
+    return joints_to_features(joints)[0].astype(np.float32)
+
+
+def _training_record(ckpt: dict[str, Any]) -> dict[str, Any]:
+    """What a checkpoint says about its training (a training checkpoint's own keys, or the record
+    a packaged one carries), as plain numbers and strings."""
+    if isinstance(ckpt.get("training"), dict):
+        return ckpt["training"]
+    record: dict[str, Any] = {}
+    for key in ("step", "metrics", "settings", "vqvae"):
+        value = ckpt.get(key)
+        if isinstance(value, int | float | str):
+            record[key] = value
+        elif isinstance(value, dict):
+            record[key] = {str(k): v for k, v in value.items() if isinstance(v, int | float | str)}
+    return record
+
+
+class MotionGenerator:
+    """Text- and path-controlled motion: path controller + body GPT + VQ-VAE + recompose.
+
+    Build it with :meth:`from_pretrained` (trained weights) or :meth:`random` (tiny untrained
+    models for tests). All randomness comes from ``seed``: the same seed and inputs give the same
+    motion, and each character of a batch draws from its own generators.
+
+    Args:
+        vqvae, gpt, controller: the three models (moved to `device`, eval mode).
+        mean, std: (263,) the training set's feature statistics (features = x * std + mean).
+        text_encoder: object with ``encode(list[str]) -> (N, dim)``, ``name`` and ``dim``; default
+            (None): loaded lazily by name (``text_encoder_name``) on the first caption.
+        text_encoder_name: the encoder the models were trained with ("minilm", ...).
+        sampling: token sampling settings.
+        untrained: True for random weights: every motion's meta says so.
+        device: torch device.
+        name: where the weights came from (recorded in every motion's meta).
+    """
+
+    def __init__(
+        self,
+        vqvae: VQVAE,
+        gpt: TokenGPT,
+        controller: PathController,
+        mean: np.ndarray,
+        std: np.ndarray,
+        text_encoder: Any = None,
+        text_encoder_name: str = "minilm",
+        sampling: SamplingConfig | None = None,
+        untrained: bool = False,
+        device: str | torch.device = "cpu",
+        name: str = "",
+    ) -> None:
+        self.pipeline = Pipeline(
+            vqvae, gpt, controller, Normalizer(mean, std), sampling or SamplingConfig(),
+            text_encoder=text_encoder, text_encoder_name=text_encoder_name, device=device,
+        )  # fmt: skip
+        self.untrained = bool(untrained)
+        self.name = name
+        # Per model, how it was trained (step, metrics, settings), carried from checkpoint to checkpoint.
+        self.training_info: dict[str, dict[str, Any]] = {}
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_pretrained(
+        cls,
+        path: str | Path | None = None,
+        device: str | torch.device = "cpu",
+        text_encoder: Any = None,
+        sampling: SamplingConfig | None = None,
+    ) -> MotionGenerator:
+        """Load a generator from a weights directory.
+
+        Args:
+            path: directory with ``vqvae.pt``, ``gpt.pt``, ``controller.pt`` (and optionally
+                ``sampling.json``); None = the shipped default model (``motion_env/weights``);
+                ``"random"`` = the untrained test model of :meth:`random` (seed 0).
+            device: "cpu", "cuda", ...
+            text_encoder: an already loaded text encoder (default: loaded by the name the
+                checkpoints record, lazily, on the first caption).
+            sampling: overrides ``sampling.json``.
+        """
+        if path is not None and str(path) == RANDOM_MODEL:
+            return cls.random(device=device, text_encoder=text_encoder)
+        folder = DEFAULT_WEIGHTS if path is None else Path(path)
+        if not folder.is_dir():
+            raise FileNotFoundError(f"no generator weights directory at {folder}")
+        missing = [f for f in WEIGHT_FILES.values() if not (folder / f).is_file()]
+        if missing:
+            hint = " (the shipped model has not been packaged into this install)" if path is None else ""
+            raise FileNotFoundError(f"{folder}: missing {', '.join(missing)}{hint}")
+        vq, vq_ckpt = load_checkpoint(folder / WEIGHT_FILES["vqvae"], "vqvae", VQVAEConfig, VQVAE, device)
+        gpt, gpt_ckpt = load_checkpoint(folder / WEIGHT_FILES["gpt"], "gpt", GPTConfig, TokenGPT, device)
+        ctrl, ctrl_ckpt = load_checkpoint(
+            folder / WEIGHT_FILES["controller"], "controller", ControllerConfig, PathController, device
+        )
+        normalizer = Normalizer.from_checkpoint(vq_ckpt, folder / WEIGHT_FILES["vqvae"])
+        records = [(c.get("text_encoder") or {}).get("name", "minilm") for c in (gpt_ckpt, ctrl_ckpt)]
+        if records[0] != records[1]:
+            raise ValueError(
+                f"{folder}: the GPT was trained with text encoder {records[0]!r}, "
+                f"the controller with {records[1]!r}"
+            )
+        if text_encoder is not None:
+            check_text_encoder(gpt_ckpt, text_encoder, folder / WEIGHT_FILES["gpt"])
+            check_text_encoder(ctrl_ckpt, text_encoder, folder / WEIGHT_FILES["controller"])
+        if sampling is None and (folder / SAMPLING_FILE).is_file():
+            try:
+                sampling = SamplingConfig(**json.loads((folder / SAMPLING_FILE).read_text()))
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"{folder / SAMPLING_FILE}: {exc}") from exc
+        untrained = any(bool(c.get("untrained", False)) for c in (vq_ckpt, gpt_ckpt, ctrl_ckpt))
+        gen = cls(
+            vq, gpt, ctrl, mean=normalizer.mean, std=normalizer.std,
+            text_encoder=text_encoder, text_encoder_name=records[0], sampling=sampling,
+            untrained=untrained, device=device, name=str(folder),
+        )  # fmt: skip
+        for kind, ckpt in (("vqvae", vq_ckpt), ("gpt", gpt_ckpt), ("controller", ctrl_ckpt)):
+            gen.training_info[kind] = _training_record(ckpt)
+        return gen
+
+    @classmethod
+    def random(
+        cls,
+        seed: int = 0,
+        device: str | torch.device = "cpu",
+        text_encoder: Any = None,
+        rate: int = 4,
+    ) -> MotionGenerator:
+        """An UNTRAINED generator: tiny models with random weights, for tests only.
+
+        Its motions have the right shapes, frame rate and determinism but no meaning (the body
+        is a rest pose plus noise, the path a random drift); ``meta["untrained"]`` says so.
+        The text encoder is the real one (loaded lazily), so captions must still be non-empty.
+        """
+        torch.manual_seed(seed)
+        vq = VQVAE(VQVAEConfig(width=32, code_dim=16, codebook_size=32, rate=rate, depth=1))
+        # A quantizer that was never trained has an all-zero codebook; give it distinct codes.
+        vq.quantizer.codebook.normal_()
+        gpt = TokenGPT(GPTConfig(vocab_size=32, block_size=16, n_layer=1, n_head=2, n_embd=32, dropout=0.0))
+        ctrl = PathController(ControllerConfig(text_proj=16, hidden=32, mlp=32))
+        # The controller starts at "stand still" (zero output layer); let the random one drift.
+        torch.nn.init.normal_(ctrl.out[-1].weight, std=0.1)
+        torch.nn.init.normal_(ctrl.out[-1].bias, std=0.1)
+        mean = _rest_pose_features()
+        std = np.full(FEATURE_DIM, 0.02, np.float32)
+        return cls(
+            vq, gpt, ctrl, mean, std, text_encoder=text_encoder, untrained=True, device=device, name="random"
+        )
+
+    def save(self, path: str | Path, half: bool = False) -> Path:
+        """Write the generator as a weights directory that :meth:`from_pretrained` reads back.
+
+        Args:
+            path: directory (created; existing checkpoint files in it are replaced).
+            half: store float weights as float16 (shipping size; loaded back as float32).
+        """
+        folder = Path(path)
+        folder.mkdir(parents=True, exist_ok=True)
+        record = {"name": self.text_encoder_name, "dim": int(self.gpt.config.text_dim)}
+        extra: dict[str, Any] = {"untrained": True} if self.untrained else {}
+        save_checkpoint(
+            folder / WEIGHT_FILES["vqvae"], kind="vqvae", config=self.vqvae.config, model=self.vqvae,
+            half=half, **self.pipeline.normalizer.checkpoint_entries(),
+            **extra, **self._training_extra("vqvae"),
+        )  # fmt: skip
+        save_checkpoint(
+            folder / WEIGHT_FILES["gpt"], kind="gpt", config=self.gpt.config, model=self.gpt, half=half,
+            text_encoder=record, **extra, **self._training_extra("gpt"),
+        )  # fmt: skip
+        save_checkpoint(
+            folder / WEIGHT_FILES["controller"], kind="controller", config=self.controller.config,
+            model=self.controller, half=half, text_encoder=record,
+            **extra, **self._training_extra("controller"),
+        )  # fmt: skip
+        (folder / SAMPLING_FILE).write_text(json.dumps(asdict(self.sampling), indent=2) + "\n")
+        return folder
+
+    def _training_extra(self, kind: str) -> dict[str, Any]:
+        info = self.training_info.get(kind)
+        return {"training": info} if info else {}
+
+    # ------------------------------------------------------------------ the pipeline's parts
+    @property
+    def vqvae(self) -> VQVAE:
+        return self.pipeline.vqvae
+
+    @property
+    def gpt(self) -> TokenGPT:
+        return self.pipeline.gpt
+
+    @property
+    def controller(self) -> PathController:
+        return self.pipeline.controller
+
+    @property
+    def device(self) -> torch.device:
+        return self.pipeline.device
+
+    @property
+    def mean(self) -> np.ndarray:
+        """(263,) the training set's feature mean."""
+        return self.pipeline.normalizer.mean
+
+    @property
+    def std(self) -> np.ndarray:
+        """(263,) the training set's feature std."""
+        return self.pipeline.normalizer.std
+
+    @property
+    def sampling(self) -> SamplingConfig:
+        """Token sampling settings (assignable)."""
+        return self.pipeline.sampling
+
+    @sampling.setter
+    def sampling(self, value: SamplingConfig) -> None:
+        if not isinstance(value, SamplingConfig):
+            raise TypeError(f"sampling must be a SamplingConfig, got {type(value).__name__}")
+        self.pipeline.sampling = value
+
+    @property
+    def rate(self) -> int:
+        """Frames per motion token."""
+        return self.pipeline.rate
+
+    @property
+    def path_horizon(self) -> int:
+        """Frames of root path a token needs beyond its first frame (its own span and one second)."""
+        return self.pipeline.path_horizon
+
+    @property
+    def text_encoder_name(self) -> str:
+        return self.pipeline.text_encoder_name
+
+    @property
+    def text_encoder(self) -> Any:
+        """The text encoder (loaded on first use)."""
+        return self.pipeline.text_encoder
+
+    def encode_text(self, texts: Sequence[str]) -> torch.Tensor:
+        """Captions -> (N, text_dim) float32 embeddings on the generator's device."""
+        return self.pipeline.encode_text(check_texts(texts))
+
+    def num_parameters(self) -> dict[str, int]:
+        """Parameter count of each model."""
+        return {
+            name: sum(p.numel() for p in model.parameters())
+            for name, model in (("vqvae", self.vqvae), ("gpt", self.gpt), ("controller", self.controller))
+        }
+
+    # ------------------------------------------------------------------ whole clips
+    @torch.no_grad()
+    def generate(
+        self,
+        text: str,
+        waypoints: np.ndarray | Sequence | None = None,
+        num_frames: int = 200,
+        seed: int | None = None,
+        start: np.ndarray | Sequence[float] | None = None,
+    ) -> Motion:
+        """One motion clip.
+
+        Args:
+            text: the caption ("a person jogs", "an elderly person walks slowly").
+            waypoints: None (follow the caption) or (K, 2)/(K, 3) world x, z and optionally the
+                frame index (20 fps) at which to pass; untimed ones are followed in order.
+            num_frames: T, frames to generate (20 fps).
+            seed: makes the clip reproducible (None: a fresh random seed, stored in meta).
+            start: (x, z, heading) of the first frame; default origin facing +Z.
+
+        Returns:
+            Motion with joints (T, 22, 3) float32 world metres, fps 20, the caption, the waypoints
+            and meta (seed, model).
+        """
+        starts = np.zeros((1, 3), np.float32) if start is None else check_start(start)[None]
+        req = BatchRequest(
+            [check_text(text)],
+            [check_route(waypoints)],
+            starts,
+            check_num_frames(num_frames),
+            resolve_seed(seed),
+        )
+        return self._clips(req)[0]
+
+    @torch.no_grad()
+    def generate_batch(
+        self,
+        texts: Sequence[str],
+        waypoints: Any = None,
+        num_frames: int = 200,
+        seed: int | None = None,
+        starts: np.ndarray | None = None,
+    ) -> list[Motion]:
+        """B clips at once (one batched pass through each model).
+
+        Args:
+            texts: B captions.
+            waypoints: None, one (K, 2)/(K, 3) route for every character, or B entries (each None
+                or a route).
+            num_frames: frames per clip.
+            seed: as in :meth:`generate`; character b draws from generators seeded by (seed, b),
+                so row 0 equals ``generate(texts[0], ..., seed=seed)``.
+            starts: (B, 3) x, z, heading per character.
+
+        Returns:
+            B :class:`Motion` clips of `num_frames` frames.
+        """
+        return self._clips(check_batch_request(texts, waypoints, num_frames, seed, starts))
+
+    def _clips(self, req: BatchRequest) -> list[Motion]:
+        """Every stage of the pipeline, once over whole clips."""
+        p = self.pipeline
+        n_tok = math.ceil(req.num_frames / p.rate)
+        emb = p.encode_text(req.texts)
+        paths = p.clip_paths(emb, req.routes, req.starts, req.num_frames, req.seed)
+        body = p.decode(p.sample_tokens(emb, paths, n_tok, req.seed))  # (B, n_tok * rate, 263)
+        motions = []
+        for i, text in enumerate(req.texts):
+            joints, _ = p.compose(body[i], paths[i], n_tok * p.rate)
+            joints = FootPinner(1).apply(0, joints, body[i][:, FOOT_CONTACT])[: req.num_frames]
+            meta = self._meta(req.seed, i)
+            motions.append(Motion(joints=joints, fps=FPS, text=text, waypoints=req.routes[i], meta=meta))
+        return motions
+
+    @torch.no_grad()
+    def root_paths(
+        self,
+        texts: Sequence[str],
+        waypoints: Any = None,
+        num_frames: int = 200,
+        seed: int | None = None,
+        starts: np.ndarray | None = None,
+        snap: bool = True,
+    ) -> np.ndarray:
+        """The root paths that :meth:`generate_batch` puts the bodies on (same arguments, same seed).
+
+        Args:
+            snap: bend them through the waypoints (as the clips are); False gives the path
+                controller's own rollout, which tells how well the controller alone follows a route.
+
+        Returns:
+            (B, num_frames, 3) float32 x, z, heading (before the heading is turned to the
+            direction of travel).
+        """
+        req = check_batch_request(texts, waypoints, num_frames, seed, starts)
+        emb = self.pipeline.encode_text(req.texts)
+        paths = self.pipeline.clip_paths(emb, req.routes, req.starts, req.num_frames, req.seed, snap)
+        return paths[:, : req.num_frames]
+
+    def _meta(self, seed: int, row: int) -> dict[str, str]:
+        meta = {
+            "generator": "motion_env.MotionGenerator",
+            "model": self.name,
+            "seed": str(seed),
+            "row": str(row),
+        }
+        if self.untrained:
+            meta["untrained"] = "true (random weights, for tests only)"
+        return meta
+
+    # ------------------------------------------------------------------ streaming
+    def stream(
+        self,
+        texts: Sequence[str],
+        waypoints: Any = None,
+        starts: np.ndarray | None = None,
+        seed: int | None = None,
+    ) -> MotionStream:
+        """A batch of characters generated frame by frame (see :class:`MotionStream`).
+
+        Args:
+            texts: B captions.
+            waypoints: None, one route for everyone, or B entries (each None or a route); times are
+                frame indices of each character's episode.
+            starts: (B, 3) x, z, heading.
+            seed: as in :meth:`generate_batch`.
+        """
+        from motion_env.generation.streaming import MotionStream
+
+        return MotionStream(self.pipeline, texts, waypoints, starts, seed)

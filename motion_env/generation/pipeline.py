@@ -1,0 +1,237 @@
+"""The generation pipeline: one object holds the models and runs the stages (C-T2M's decoupled design).
+
+A request, already checked (:mod:`motion_env.generation.request`), goes through:
+
+1. **text**: the caption becomes an embedding (:meth:`Pipeline.encode_text`, encoder loaded lazily);
+2. **root path**: the path controller (:mod:`motion_env.models.controller`) rolls out x, z,
+   heading frame by frame, closed loop, from the caption and the waypoints
+   (:meth:`Pipeline.init_controller`, :meth:`Pipeline.rollout`); the path is bent exactly through
+   the waypoints it should pass (:mod:`motion_env.generation.recompose`);
+3. **tokens**: per-token path features (:mod:`motion_env.models.path_features`) and the caption
+   condition the body GPT, which samples motion tokens one by one
+   (:meth:`Pipeline.sample_tokens`, :mod:`motion_env.models.sampling`);
+4. **decode**: the VQ-VAE decodes tokens to normalised features, which the
+   :class:`~motion_env.models.normalizer.Normalizer` turns back into 263-d features
+   (:meth:`Pipeline.decode`, :meth:`Pipeline.decode_latest` for the stream);
+5. **body on the path**: the decoded body, relative to its root, is placed on the root path and
+   rebuilt on the skeleton's bone lengths (:meth:`Pipeline.compose`: decoded legs come out up to
+   9 cm short);
+6. **feet**: feet the decoder marks as planted are pinned (:class:`~motion_env.generation.feet.FootPinner`).
+
+Two thin drivers run it: :class:`~motion_env.generation.generator.MotionGenerator` (whole clips,
+every stage once over the whole clip) and :class:`~motion_env.generation.streaming.MotionStream`
+(the same stages causally, one token at a time).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+import torch
+
+from motion_env.generation.recompose import (
+    align_heading_to_travel,
+    local_pose_from_features,
+    recompose,
+    snap_route,
+)
+from motion_env.models.controller import ControllerState, PathController
+from motion_env.models.gpt import TokenGPT
+from motion_env.models.normalizer import Normalizer
+from motion_env.models.path_features import LOOKAHEAD_FRAMES, token_path_features
+from motion_env.models.sampling import SamplingConfig
+from motion_env.models.vqvae import VQVAE
+from motion_env.motion.kinematics import with_bone_lengths
+
+__all__ = ["CONTROLLER_STREAM", "TOKEN_STREAM", "Pipeline", "row_generator"]
+
+# The random streams of one character (see row_generator).
+CONTROLLER_STREAM, TOKEN_STREAM = 0, 1
+
+
+def row_generator(seed: int, row: int, stream: int) -> torch.Generator:
+    """An independent CPU generator for one character (`row`) and one purpose (`stream`).
+
+    Every character of a batch draws from its own generators, so a character generates the same
+    motion alone or in a batch, and the controller's draws never shift the token draws.
+    """
+    state = np.random.SeedSequence([seed & 0xFFFFFFFFFFFFFFFF, row, stream]).generate_state(
+        2, dtype=np.uint32
+    )
+    g = torch.Generator(device="cpu")
+    g.manual_seed(int(state[0]) << 32 | int(state[1]))
+    return g
+
+
+class Pipeline:
+    """The models and the stages that turn a checked request into motion.
+
+    Args:
+        vqvae, gpt, controller: the three models (moved to `device`, eval mode).
+        normalizer: the training set's feature statistics (the VQ-VAE's).
+        sampling: token sampling settings.
+        text_encoder: object with ``encode(list[str]) -> (N, dim)``, ``name`` and ``dim``; default
+            (None): loaded lazily by name (``text_encoder_name``) on the first caption.
+        text_encoder_name: the encoder the models were trained with ("minilm+sides", ...).
+        device: torch device.
+    """
+
+    def __init__(
+        self,
+        vqvae: VQVAE,
+        gpt: TokenGPT,
+        controller: PathController,
+        normalizer: Normalizer,
+        sampling: SamplingConfig,
+        text_encoder: Any = None,
+        text_encoder_name: str = "minilm",
+        device: str | torch.device = "cpu",
+    ) -> None:
+        if gpt.config.vocab_size != vqvae.config.codebook_size:
+            raise ValueError(
+                f"the GPT predicts {gpt.config.vocab_size} tokens but the VQ-VAE has "
+                f"{vqvae.config.codebook_size} codes: the checkpoints do not belong together"
+            )
+        if gpt.config.text_dim != controller.config.text_dim:
+            raise ValueError(
+                f"the GPT takes {gpt.config.text_dim}-d text, the controller {controller.config.text_dim}-d"
+            )
+        self.device = torch.device(device)
+        self.vqvae = vqvae.to(self.device).eval()
+        self.gpt = gpt.to(self.device).eval()
+        self.controller = controller.to(self.device).eval()
+        if text_encoder is not None:
+            self._check_encoder(text_encoder)
+        self.normalizer = normalizer
+        self.sampling = sampling
+        self.text_encoder_name = text_encoder_name if text_encoder is None else str(text_encoder.name)
+        self._text_encoder = text_encoder
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def rate(self) -> int:
+        """Frames per motion token."""
+        return int(self.vqvae.rate)
+
+    @property
+    def path_horizon(self) -> int:
+        """Frames of root path a token needs beyond its first frame (its own span and one second)."""
+        return max(self.rate, LOOKAHEAD_FRAMES)
+
+    # ------------------------------------------------------------------ 1. text
+    def _check_encoder(self, encoder: Any) -> None:
+        if int(encoder.dim) != self.gpt.config.text_dim:
+            raise ValueError(
+                f"text encoder {encoder.name} is {encoder.dim}-d, the models need {self.gpt.config.text_dim}"
+            )
+
+    @property
+    def text_encoder(self) -> Any:
+        """The text encoder (loaded on first use)."""
+        if self._text_encoder is None:
+            from motion_env.text.encoders import load_text_encoder
+
+            encoder = load_text_encoder(self.text_encoder_name)
+            self._check_encoder(encoder)
+            self._text_encoder = encoder
+        return self._text_encoder
+
+    def encode_text(self, texts: Sequence[str]) -> torch.Tensor:
+        """Checked captions -> (N, text_dim) float32 embeddings on the pipeline's device."""
+        return torch.as_tensor(self.text_encoder.encode(list(texts)), dtype=torch.float32).to(self.device)
+
+    # ------------------------------------------------------------------ 2. root path
+    def init_controller(
+        self,
+        text_emb: torch.Tensor,
+        routes: list[np.ndarray | None],
+        starts: np.ndarray,
+        gens: list[torch.Generator],
+    ) -> ControllerState:
+        """Controller state at frame 0; the initial GRU state is drawn per character from its generator."""
+        state = self.controller.init_state(text_emb, routes, torch.from_numpy(starts))
+        noise_std = self.controller.config.h0_noise
+        if noise_std > 0:
+            hidden = self.controller.config.hidden
+            noise = torch.stack([torch.randn(hidden, generator=g) for g in gens]).to(self.device)
+            state = replace(state, hidden=state.hidden + noise_std * noise)
+        return state
+
+    def rollout(
+        self,
+        text_emb: torch.Tensor,
+        routes: list[np.ndarray | None],
+        starts: np.ndarray,
+        num_frames: int,
+        seed: int,
+    ) -> np.ndarray:
+        """The controller's closed-loop root paths: (B, num_frames, 3) float32, frame 0 = start."""
+        gens = [row_generator(seed, i, CONTROLLER_STREAM) for i in range(len(routes))]
+        state = self.init_controller(text_emb, routes, starts, gens)
+        roots, _ = self.controller(state, num_frames - 1)
+        return roots.cpu().numpy().astype(np.float32)
+
+    def clip_paths(
+        self,
+        text_emb: torch.Tensor,
+        routes: list[np.ndarray | None],
+        starts: np.ndarray,
+        num_frames: int,
+        seed: int,
+        snap: bool = True,
+    ) -> np.ndarray:
+        """Root paths (B, n_path, 3) for clips of `num_frames`, bent through the routes if `snap`.
+
+        The path reaches one horizon past the last token's first frame, as in streaming, so the
+        last tokens' path features are never cut short.
+        """
+        n_path = (math.ceil(num_frames / self.rate) - 1) * self.rate + self.path_horizon + 1
+        roots = self.rollout(text_emb, routes, starts, n_path, seed)
+        if snap:
+            roots = np.stack([snap_route(r, w) for r, w in zip(roots, routes, strict=True)])
+        return roots
+
+    # ------------------------------------------------------------------ 3. tokens
+    def sample_tokens(
+        self, text_emb: torch.Tensor, paths: np.ndarray, num_tokens: int, seed: int
+    ) -> torch.Tensor:
+        """Whole clips' tokens: (B, num_tokens) long, conditioned on the caption and the root paths."""
+        feats = np.stack([token_path_features(p, self.rate)[:num_tokens] for p in paths])
+        gens = [row_generator(seed, i, TOKEN_STREAM) for i in range(len(paths))]
+        return self.gpt.generate(
+            text_emb, torch.from_numpy(feats).to(self.device), num_tokens, gens, self.sampling
+        )
+
+    # ------------------------------------------------------------------ 4. decode
+    def decode(self, tokens: torch.Tensor) -> np.ndarray:
+        """(B, N) tokens -> (B, N * rate, 263) float32 features."""
+        return self.normalizer.denormalize(self.vqvae.decode(tokens.to(self.device)))
+
+    def decode_latest(self, recent_codes: torch.Tensor) -> np.ndarray:
+        """(B, n) most recent tokens -> (B, rate, 263) float32 features of the newest one."""
+        return self.normalizer.denormalize(self.vqvae.decode_stream(recent_codes.to(self.device)))
+
+    # ------------------------------------------------------------------ 5. body on the path
+    def compose(
+        self, features: np.ndarray, root_path: np.ndarray, num_frames: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Decoded features (n, 263) on a root path (>= n, 3) -> world joints and the root path used.
+
+        The root path may run past the features (look-ahead frames): they shape the direction of
+        travel at the last frames; the local pose is held over them and they are cut off.
+
+        Returns:
+            (num_frames, 22, 3) joints before foot cleanup, (num_frames, 3) root path whose heading
+            is turned to the direction of travel.
+        """
+        n = features.shape[0]
+        local = local_pose_from_features(features)
+        if root_path.shape[0] > n:
+            local = np.concatenate([local, np.repeat(local[-1:], root_path.shape[0] - n, axis=0)])
+        path = align_heading_to_travel(root_path)
+        joints = with_bone_lengths(recompose(local, path, face_travel=False)[:num_frames])
+        return joints, path[:num_frames]

@@ -1,0 +1,279 @@
+"""Closed-form stages of the pipeline: the path through the waypoints, the body on the path.
+
+- :func:`route_anchors` picks the waypoints a root path must pass and the frame of each;
+  :func:`snap_to_waypoints` bends a whole clip's path exactly through them, and
+  :func:`spread_residuals` does it causally for the stream (linear, so a window that moves on by a
+  token keeps a constant correction per frame).
+- :func:`recompose` places a *local pose* (the body relative to its root, in its own heading
+  frame: what the body GPT decodes) on a root path, so the pelvis lies exactly on the path and
+  the body faces its direction of travel.
+
+All functions are deterministic numpy; root paths follow :mod:`motion_env.motion.trajectory`.
+The feet are cleaned afterwards by :mod:`motion_env.generation.feet`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.interpolate import PchipInterpolator
+from scipy.ndimage import gaussian_filter1d
+
+from motion_env.motion.features import features_to_joints
+from motion_env.motion.kinematics import rotate_y
+from motion_env.motion.checks import check_joints
+from motion_env.motion.skeleton import FPS
+from motion_env.motion.trajectory import (
+    root_path_from_joints,
+    validate_root_path,
+    validate_waypoints,
+    wrap_angle,
+)
+
+
+# An untimed waypoint is snapped to only where the controller's path passes it this close (m): one
+# the path has not reached (yet) is left to the controller rather than dragging the path to it.
+SNAP_RADIUS = 0.5
+
+# ----------------------------------------------------------------------------------------------
+# The body on the path
+# ----------------------------------------------------------------------------------------------
+
+
+def local_pose_from_joints(joints: np.ndarray, root_path: np.ndarray | None = None) -> np.ndarray:
+    """The body relative to its root path: pelvis XZ at the origin, heading turned to +Z.
+
+    Args:
+        joints: (T, 22, 3) world joint positions.
+        root_path: (T, 3) the path to factor out; default :func:`paths.root_path_from_joints`.
+
+    Returns:
+        (T, 22, 3) float32 local pose (joint heights unchanged; the pelvis is at x = z = 0).
+    """
+    joints = check_joints(joints)
+    path = root_path_from_joints(joints) if root_path is None else validate_root_path(root_path)
+    if path.shape[0] != joints.shape[0]:
+        raise ValueError(f"root_path has {path.shape[0]} frames, joints {joints.shape[0]}")
+    local = joints.copy()
+    local[..., [0, 2]] -= path[:, None, :2].astype(np.float64)
+    return rotate_y(local, -path[:, None, 2].astype(np.float64)).astype(np.float32)
+
+
+def local_pose_from_features(features: np.ndarray) -> np.ndarray:
+    """Local pose of decoded 263-d features (T, 263) -> (T, 22, 3).
+
+    The features are turned into joints with :func:`motion.features_to_joints` (their own root
+    trajectory), whose root path is then factored out again with :func:`local_pose_from_joints`.
+    Going through joints, rather than reading the RIC channels directly, expresses the body in the
+    same (smoothed hips-and-shoulders) heading frame the controller is trained on, so the body
+    neither gains nor loses a twist when it is put back on a path.
+    """
+    return local_pose_from_joints(features_to_joints(np.asarray(features, dtype=np.float32)))
+
+
+def _travel(root_path: np.ndarray, sigma: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+    """Speed (m/s) and direction of travel (heading convention) per frame of a root path."""
+    vel = np.gradient(root_path[:, :2].astype(np.float64), axis=0) * FPS if len(root_path) > 1 else None
+    if vel is None:
+        return np.zeros(1), root_path[:, 2].astype(np.float64)
+    vel = gaussian_filter1d(vel, sigma, axis=0, mode="nearest")
+    return np.linalg.norm(vel, axis=1), np.arctan2(vel[:, 0], vel[:, 1])
+
+
+def align_heading_to_travel(
+    root_path: np.ndarray, min_speed: float = 0.3, full_speed: float = 0.6, max_offset_deg: float = 45.0
+) -> np.ndarray:
+    """Turn the heading of a root path to its direction of travel where the body walks forward.
+
+    Where the path moves (speed ramping from `min_speed` to `full_speed` m/s) and its heading is
+    within `max_offset_deg` / 2 of the direction of travel, the heading is replaced by that
+    direction (so a forward walk never glides sideways); the correction fades out up to 1.5 *
+    `max_offset_deg`, beyond which the offset is deliberate (side steps, walking backwards) and
+    kept. Still frames keep their heading (no spin on the spot).
+
+    Returns:
+        (T, 3) float32 root path with the new (unwrapped) heading.
+    """
+    path = validate_root_path(root_path).astype(np.float64)
+    speed, travel = _travel(path)
+    offset = wrap_angle(travel - path[:, 2])
+    lim = np.deg2rad(max_offset_deg)
+    w_speed = np.clip((speed - min_speed) / max(full_speed - min_speed, 1e-6), 0.0, 1.0)
+    w_angle = np.clip((1.5 * lim - np.abs(offset)) / lim, 0.0, 1.0)
+    correction = gaussian_filter1d(w_speed * w_angle * offset, 1.0, mode="nearest")
+    out = path.copy()
+    out[:, 2] = path[:, 2] + correction
+    return out.astype(np.float32)
+
+
+def recompose(local_pose: np.ndarray, root_path: np.ndarray, face_travel: bool = True) -> np.ndarray:
+    """Place a local pose on a root path.
+
+    Args:
+        local_pose: (T, 22, 3) the body relative to its root in its own heading frame (facing +Z,
+            pelvis at x = z = 0; heights absolute), e.g. :func:`local_pose_from_features` of the
+            body GPT's decoded features. Any pelvis XZ left in it is removed.
+        root_path: (T, 3) x, z, heading from the path controller.
+        face_travel: first turn the heading to the direction of travel where the body moves
+            forward (:func:`align_heading_to_travel`).
+
+    Returns:
+        (T, 22, 3) float32 world joints: pelvis XZ exactly on the path, legs, height and limbs
+        from the local pose.
+    """
+    local = check_joints(local_pose, "local_pose").copy()
+    path = validate_root_path(root_path)
+    if path.shape[0] != local.shape[0]:
+        raise ValueError(f"root_path has {path.shape[0]} frames, local_pose {local.shape[0]}")
+    if face_travel:
+        path = align_heading_to_travel(path)
+    local[..., [0, 2]] -= local[:, :1, [0, 2]]
+    joints = rotate_y(local, path[:, None, 2].astype(np.float64))
+    joints[..., [0, 2]] += path[:, None, :2].astype(np.float64)
+    return joints.astype(np.float32)
+
+
+# ----------------------------------------------------------------------------------------------
+# Waypoint snapping
+# ----------------------------------------------------------------------------------------------
+
+
+def waypoint_frames(root_path: np.ndarray, waypoints: np.ndarray | list) -> np.ndarray:
+    """The frame at which a path passes each waypoint: (K,) int, -1 for timed ones past the end.
+
+    Timed waypoints: their time rounded to a frame. Untimed: the closest approach, searched from
+    the previous waypoint's frame on.
+    """
+    path = validate_root_path(root_path)
+    wp = validate_waypoints(waypoints)
+    last = path.shape[0] - 1
+    frames = np.full(len(wp), -1, np.int64)
+    after = 0
+    for k, (x, z, t) in enumerate(wp):
+        if np.isnan(t):
+            dist = np.linalg.norm(path[after:, :2] - (x, z), axis=1)
+            frames[k] = after + int(np.argmin(dist))
+        elif int(np.rint(t)) <= last:
+            frames[k] = int(np.rint(t))
+        if frames[k] >= 0:
+            after = int(frames[k])
+    return frames
+
+
+def snap_to_waypoints(
+    root_path: np.ndarray, waypoints: np.ndarray | list, keep_start: bool = True
+) -> np.ndarray:
+    """Bend a root path so it passes exactly through its waypoints.
+
+    The residual (waypoint - path) at each waypoint's frame (:func:`waypoint_frames`) becomes an
+    offset curve, interpolated between waypoint frames with a monotone piecewise cubic (PCHIP: C1,
+    no overshoot, a steady drift is corrected at a steady rate) and held after the last one. The
+    heading turns with the change of the direction of travel, so a body that walked forward still
+    does. Timed waypoints past the end of the path are ignored.
+
+    Args:
+        root_path: (T, 3) x, z, heading.
+        waypoints: (K, 2) or (K, 3), see :func:`paths.validate_waypoints`.
+        keep_start: frame 0 stays where it is (the character's current position) unless a
+            waypoint is timed at frame 0.
+
+    Returns:
+        (T, 3) float32 snapped root path.
+    """
+    path = validate_root_path(root_path).astype(np.float64)
+    wp = validate_waypoints(waypoints).astype(np.float64)
+    frames = waypoint_frames(path, wp)
+    anchors: dict[int, np.ndarray] = {}
+    if keep_start:
+        anchors[0] = np.zeros(2)
+    for k, f in enumerate(frames):
+        if f >= 0:
+            anchors[int(f)] = wp[k, :2] - path[f, :2]  # a later waypoint on the same frame wins
+    if not anchors:
+        return path.astype(np.float32)
+    keys = np.array(sorted(anchors))
+    res = np.stack([anchors[k] for k in keys])
+    if keep_start and keys[0] == 0 and not res[0].any():
+        # A still anchor just before the start: PCHIP then leaves frame 0's velocity unchanged too.
+        keys, res = np.concatenate([[-1], keys]), np.concatenate([np.zeros((1, 2)), res])
+    t = np.arange(path.shape[0])
+    if len(keys) == 1:
+        offset = np.repeat(res, path.shape[0], axis=0)
+    else:
+        offset = PchipInterpolator(keys, res, axis=0)(np.clip(t, keys[0], keys[-1]))
+    out = path.copy()
+    out[:, :2] += offset
+    speed0, travel0 = _travel(path)
+    speed1, travel1 = _travel(out)
+    moving = np.clip((np.minimum(speed0, speed1) - 0.1) / 0.3, 0.0, 1.0)
+    turn = gaussian_filter1d(moving * wrap_angle(travel1 - travel0), 1.0, mode="nearest")
+    if keep_start:
+        turn *= np.clip(t / 4.0, 0.0, 1.0)  # the current frame's heading stays, then eases in
+    out[:, 2] += turn
+    return out.astype(np.float32)
+
+
+# ----------------------------------------------------------------------------------------------
+# Which waypoints a path is bent through
+# ----------------------------------------------------------------------------------------------
+
+
+def route_anchors(path: np.ndarray, route: np.ndarray, first: int = 0, open_end: bool = False) -> np.ndarray:
+    """The waypoints a root path is snapped to, each timed at the frame where the path should pass it.
+
+    Args:
+        path: (T, 3) root path whose frame 0 is episode frame `first`.
+        route: (K, 3) waypoints ahead (episode frame times, NaN = untimed), in order.
+        first: episode frame of the path's frame 0 (which stays where it is).
+        open_end: the path goes on after its last frame (streaming look-ahead): an untimed
+            waypoint closest at the last frame is still being approached and is not snapped.
+
+    Returns:
+        (M, 3) float32 x, z and the frame (of `path`) of each anchor, frames increasing: timed
+        waypoints inside the path; untimed ones at their closest approach (searched after the
+        previous anchor) when it is within SNAP_RADIUS. The first untimed waypoint the path
+        does not reach ends the list (the ones after it are not reached in order either).
+    """
+    last = len(path) - 1
+    anchors: list[tuple[float, float, float]] = []
+    after = 0
+    for x, z, t in route:
+        if np.isnan(t):
+            dist = np.linalg.norm(path[after:, :2] - (x, z), axis=1)
+            k = after + int(np.argmin(dist))
+            if dist[k - after] > SNAP_RADIUS or (open_end and k == last):
+                break
+        else:
+            k = int(np.rint(t)) - first
+            if k > last:
+                break
+        if k <= 0 or (anchors and k <= anchors[-1][2]):
+            continue  # at or before a frame that is already fixed
+        anchors.append((float(x), float(z), float(k)))
+        after = k
+    return np.array(anchors, np.float32).reshape(-1, 3)
+
+
+def snap_route(path: np.ndarray, route: np.ndarray | None) -> np.ndarray:
+    """A whole clip's root path bent through the route's anchors (:func:`snap_to_waypoints`)."""
+    if route is None:
+        return path
+    anchors = route_anchors(path, route)
+    return path if len(anchors) == 0 else snap_to_waypoints(path, anchors, keep_start=True)
+
+
+def spread_residuals(path: np.ndarray, anchors: np.ndarray) -> np.ndarray:
+    """Bend `path` (frame 0 fixed) through `anchors` (M, 3: x, z, frame) with linear residuals.
+
+    The residual at each anchor is spread linearly from the previous one (frame 0: zero) and held
+    after the last. Linear rather than :func:`snap_to_waypoints`' PCHIP curve because the stream's
+    window moves on by a token at a time: a linear share of the residual committed with each token
+    leaves the same rate for the rest, so the correction per frame stays constant.
+    """
+    path = np.array(path, dtype=np.float64)
+    if len(anchors):
+        keys = np.concatenate([[0.0], anchors[:, 2]])
+        res = np.concatenate([np.zeros((1, 2)), anchors[:, :2] - path[anchors[:, 2].astype(int), :2]])
+        t = np.arange(len(path))
+        path[:, 0] += np.interp(t, keys, res[:, 0])
+        path[:, 1] += np.interp(t, keys, res[:, 1])
+    return path

@@ -1,0 +1,6 @@
+"""Motion files in: BVH (any skeleton with recognisable joint names) and the package's `.npz`."""
+
+from motion_env.io.bvh import load_bvh
+from motion_env.io.load import load_motion
+
+__all__ = ["load_bvh", "load_motion"]
