@@ -1,17 +1,32 @@
-"""Test-wide settings: single-threaded torch (tiny models run faster on one thread, and the
-2-core CI machine stays responsive) and the real-data location."""
+"""Test-wide settings and fixtures, defined once for every test folder.
+
+- torch runs single-threaded (tiny models run faster on one thread, and the 2-core CI machine
+  stays responsive);
+- real motion capture is read from one place: ``$MOTION_ENV_DATA`` when set, else
+  ``../shared/data`` beside the checkout. Tests that need it ask for the :func:`shared_data`
+  fixture (or :func:`require_data`) and skip, saying how to point them at the data, when absent.
+"""
 
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA_ENV = "MOTION_ENV_DATA"
+DATA_DIR = Path(os.environ.get(DATA_ENV) or Path(__file__).resolve().parents[2] / "shared" / "data")
+HUMANML3D_CLIP = "012314"
+
+
+def missing_data(path: Path) -> str:
+    """The skip reason for a test whose real data is not at `path`."""
+    return f"real motion capture not found at {path}: set {DATA_ENV}=/path/to/shared/data to run this test"
 
 
 @pytest.fixture(autouse=True, scope="session")
@@ -19,3 +34,53 @@ def _single_thread_torch() -> None:
     import torch
 
     torch.set_num_threads(1)
+
+
+@pytest.fixture(scope="session")
+def shared_data() -> Path:
+    """The real-data folder (bandai/, cmu/, humanml3d_sample/); skips when it is absent."""
+    if not DATA_DIR.is_dir():
+        pytest.skip(missing_data(DATA_DIR))
+    return DATA_DIR
+
+
+@pytest.fixture(scope="session")
+def require_data() -> Callable[[str], Path]:
+    """``require_data("bandai/dataset-2")`` -> that path under the data folder, or skip the test."""
+
+    def require(relative: str) -> Path:
+        path = DATA_DIR / relative
+        if not path.exists():
+            pytest.skip(missing_data(path))
+        return path
+
+    return require
+
+
+@pytest.fixture(scope="session")
+def humanml3d_sample(require_data: Callable[[str], Path]) -> tuple[np.ndarray, np.ndarray]:
+    """The HumanML3D reference clip: (T, 22, 3) joints and (T-1, 263) features, float32."""
+    root = require_data("humanml3d_sample")
+    joints = require_data(f"humanml3d_sample/new_joints/{HUMANML3D_CLIP}.npy")
+    features = require_data(f"humanml3d_sample/new_joint_vecs/{HUMANML3D_CLIP}.npy")
+    del root
+    return np.load(joints).astype(np.float32), np.load(features).astype(np.float32)
+
+
+@pytest.fixture(scope="session")
+def random_generator():
+    """The untrained test generator (tiny random models, seed 0)."""
+    from motion_env.generation.generator import MotionGenerator
+
+    return MotionGenerator.random(seed=0)
+
+
+@pytest.fixture(scope="session")
+def pretrained_generator():
+    """The shipped default model; skips when the weights are not installed."""
+    from motion_env.generation.generator import MotionGenerator
+
+    try:
+        return MotionGenerator.from_pretrained()
+    except FileNotFoundError as exc:
+        pytest.skip(f"the shipped model is not installed: {exc}")

@@ -23,11 +23,11 @@ from __future__ import annotations
 
 import random
 import re
-
-from motion_env.text.mirror import mirror_caption
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+
+from motion_env.text.mirror import mirror_caption
 
 # Twelve: a text-conditioned model generalises to new wordings only when each motion is seen
 # under many (HumanML3D has three human-written ones per clip; ours are drawn from phrase lists).

@@ -2,8 +2,9 @@
 
 Conventions (``docs/conventions.md``): metres, Y up, floor at y = 0. Quaternions are
 ``(..., 4)`` arrays ``(w, x, y, z)`` (:mod:`motion_env.motion.rotations`). A heading θ is a yaw
-about +Y; θ = 0 faces +Z and the facing direction is ``(sin θ, cos θ)`` in (x, z). The heading frame of a character has x = lateral (+ is the
-character's left, which is +X at θ = 0) and z = forward.
+about +Y; θ = 0 faces +Z and the facing direction is ``(sin θ, cos θ)`` in (x, z). The heading
+frame of a character has x = lateral (+ is the character's left, which is +X at θ = 0) and
+z = forward.
 
 Kinematics follow HumanML3D's ``Skeleton``: joint ``j`` carries the rotation of the bone that
 ends at ``j`` relative to its *rotation parent*, which is the previous joint of its chain in

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from motion_env import motion as M
-from motion_env.render import stick as R
 from motion_env import skeleton as S
 from motion_env.cli import main
 from motion_env.motion.types import Motion
+from motion_env.render import stick as R
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
 SMALL = {"width": 160, "height": 120}
 
 

@@ -16,7 +16,7 @@ from motion_env.motion.kinematics import heading_from_joints
 from motion_env.motion.skeleton import FOOT_JOINTS
 from motion_env.motion.trajectory import root_path_from_joints, waypoint_errors, wrap_angle
 
-SAMPLE = Path(__file__).resolve().parents[2] / "shared" / "data" / "humanml3d_sample"
+SAMPLE = Path(__file__).resolve().parents[3] / "shared" / "data" / "humanml3d_sample"
 
 
 def _sample() -> tuple[np.ndarray, np.ndarray]:

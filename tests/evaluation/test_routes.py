@@ -26,7 +26,7 @@ from motion_env.evaluation.routes import (
 )
 from motion_env.motion.skeleton import FPS
 
-BANDAI = Path(__file__).resolve().parents[2] / "shared" / "data" / "bandai" / "dataset-2" / "bvh"
+BANDAI = Path(__file__).resolve().parents[3] / "shared" / "data" / "bandai" / "dataset-2" / "bvh"
 
 
 @pytest.mark.parametrize("kind", ["line", "arc", "zigzag", "scurve"])

@@ -16,7 +16,7 @@ from motion_env.models.vqvae import VQVAEConfig
 from motion_env.text.encoders import TextEncoder
 from motion_env.training.body import train_gpt, train_vqvae
 
-SAMPLE = Path(__file__).resolve().parents[2] / "shared" / "data" / "humanml3d_sample"
+SAMPLE = Path(__file__).resolve().parents[3] / "shared" / "data" / "humanml3d_sample"
 TINY_VQ = VQVAEConfig(width=16, code_dim=8, codebook_size=16, depth=1)
 TINY_GPT = GPTConfig(block_size=8, n_layer=1, n_head=2, n_embd=16, text_dim=8)
 

@@ -21,7 +21,7 @@ from motion_env.data.captions import (
 )
 from motion_env.text.mirror import mirror_caption
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
+SHARED = Path(__file__).resolve().parents[3] / "shared" / "data"
 CMU_INDEX = SHARED / "cmu" / "CMU-INDEX.md"
 
 

@@ -25,7 +25,7 @@ from motion_env.data.dataset import (
 from motion_env.motion.skeleton import FEATURE_DIM, NUM_JOINTS
 from motion_env.text.mirror import mirror_caption
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
+SHARED = Path(__file__).resolve().parents[3] / "shared" / "data"
 
 # A MotionBuilder-named skeleton in centimetres, Y up, facing +Z (left = +X):
 # (name, parent, offset); End Sites are added to the leaves.

@@ -12,7 +12,7 @@ import torch
 from motion_env.models.checkpoint import export_checkpoint, load_checkpoint, read_checkpoint, save_checkpoint
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
 
-SAMPLE = Path(__file__).resolve().parents[2] / "shared" / "data" / "humanml3d_sample"
+SAMPLE = Path(__file__).resolve().parents[3] / "shared" / "data" / "humanml3d_sample"
 
 
 @pytest.fixture(autouse=True)

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from motion_env import motion as M
-from motion_env.motion import kinematics
 from motion_env import skeleton as S
+from motion_env.motion import kinematics
 
-SAMPLE = Path(__file__).resolve().parents[2] / "shared" / "data" / "humanml3d_sample"
+SAMPLE = Path(__file__).resolve().parents[3] / "shared" / "data" / "humanml3d_sample"
 
 
 def _sample() -> tuple[np.ndarray, np.ndarray]:

@@ -18,7 +18,7 @@ from motion_env.replay import corruptions, evaluate, format_report, humanoid, me
 from motion_env.replay.checks import CHECKS, load_thresholds
 from motion_env.replay.fit import clip_rest_directions, fit_qpos
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
 SAMPLE = DATA / "humanml3d_sample" / "new_joints" / "012314.npy"
 BANDAI = DATA / "bandai" / "dataset-2" / "bvh"
 

@@ -12,7 +12,7 @@ from motion_env.models import path_features
 from motion_env.motion import trajectory as paths
 from motion_env.motion.kinematics import heading_from_joints, rotate_y
 
-SAMPLE = Path(__file__).resolve().parents[2] / "shared" / "data" / "humanml3d_sample"
+SAMPLE = Path(__file__).resolve().parents[3] / "shared" / "data" / "humanml3d_sample"
 
 
 def _sample_joints() -> np.ndarray:

@@ -16,7 +16,7 @@ from motion_env import skeleton as S
 from motion_env.io.bvh import bvh_world_positions, load_bvh, map_joint_names, read_bvh
 from motion_env.io.load import load_motion
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
 BANDAI = DATA / "bandai" / "dataset-2" / "bvh"
 CMU = DATA / "cmu" / "bvh"
 
