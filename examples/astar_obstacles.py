@@ -22,9 +22,9 @@ import numpy as np
 import torch
 
 import motion_env
+from motion_env.envs.arena import obstacle_distance
 from motion_env.render.stick import plot_path, render_video
 from policies import AStarPolicy
-from policies.astar import obstacle_distance
 
 
 @dataclass
@@ -66,10 +66,9 @@ def main(args: Args) -> dict:
     torch.set_num_threads(args.threads)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    if args.random_model:
-        generator = motion_env.MotionGenerator.random(seed=args.seed)
-    else:
-        generator = motion_env.MotionGenerator.from_pretrained(args.model or None)
+    generator = motion_env.MotionGenerator.from_pretrained(
+        "random" if args.random_model else args.model or None
+    )
 
     goal = np.array([args.goal_x, args.goal_z])
     env = gym.make(

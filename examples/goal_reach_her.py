@@ -103,10 +103,9 @@ def main(args: Args) -> dict:
     torch.set_num_threads(args.threads)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    if args.random_model:
-        generator = motion_env.MotionGenerator.random(seed=args.seed)
-    else:
-        generator = motion_env.MotionGenerator.from_pretrained(args.model or None)
+    generator = motion_env.MotionGenerator.from_pretrained(
+        "random" if args.random_model else args.model or None
+    )
 
     # Train: a random goal 1.5-4 m away every episode; HER relabels with goals reached later on.
     env = make_env(generator, args, args.episode_steps)

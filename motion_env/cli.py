@@ -268,6 +268,8 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--batch-sizes", default="1,16,64", help="streaming batch sizes for throughput")
     p.add_argument("--stream-frames", type=int, default=100, help="frames streamed per throughput run")
     p.add_argument("--env-steps", type=int, default=1000, help="environment steps timed (0: skip the env)")
+    p.add_argument("--num-envs", default="1,16,64", help="vector-env sizes for throughput")
+    p.add_argument("--vector-steps", type=int, default=200, help="timed steps per vector-env run (0: skip)")
     p.add_argument(
         "--threads", type=int, default=1,
         help="torch CPU threads (default 1: the models' small sequential steps run faster on one thread)",
@@ -287,6 +289,7 @@ def _run_bench(args: argparse.Namespace) -> int:
         model=args.model, random_model=args.random_model, device=args.device, runs=args.runs,
         num_frames=args.frames, batch_sizes=sizes, stream_frames=args.stream_frames,
         env_steps=args.env_steps, threads=args.threads,
+        num_envs=[int(v) for v in args.num_envs.split(",") if v.strip()], vector_steps=args.vector_steps,
     )  # fmt: skip
     print(format_results(results))
     if args.json:

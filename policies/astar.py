@@ -1,9 +1,10 @@
 """Grid A* over an occupancy map, path smoothing, re-planning and carrot waypoints.
 
-The planner works on the floor plane (x, z). Obstacles are circles ``(x, z, radius)`` or
-polygons ``[(x, z), ...]``; they are inflated by a clearance so that the pelvis path keeps the
-body out of them. The policy re-plans when the goal or the map changes, or when the character has
-drifted off its plan, and emits a "carrot": the point a fixed distance ahead along the plan.
+The planner works on the floor plane (x, z). Obstacles are the environments' own
+(:mod:`motion_env.envs.arena`): circles ``(x, z, radius)`` or polygons ``[(x, z), ...]``; they
+are inflated by a clearance so that the pelvis path keeps the body out of them. The policy
+re-plans when the goal or the map changes, or when the character has drifted off its plan, and
+emits a "carrot": the point a fixed distance ahead along the plan.
 """
 
 from __future__ import annotations
@@ -13,72 +14,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-Obstacle = tuple[float, float, float] | Sequence[Sequence[float]]
+from motion_env.envs.arena import Obstacle, is_circle, obstacle_distance, validate_obstacles
 
 _SQRT2 = float(np.sqrt(2.0))
 _MOVES = [(-1, 0, 1.0), (1, 0, 1.0), (0, -1, 1.0), (0, 1, 1.0),
           (-1, -1, _SQRT2), (-1, 1, _SQRT2), (1, -1, _SQRT2), (1, 1, _SQRT2)]  # fmt: skip
-
-
-def _is_circle(obstacle: Obstacle) -> bool:
-    return len(obstacle) == 3 and all(np.ndim(v) == 0 for v in obstacle)
-
-
-def _points_in_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """Even-odd rule; points (N, 2), polygon (M, 2) -> (N,) bool."""
-    x, z = points[:, 0:1], points[:, 1:2]
-    x0, z0 = polygon[:, 0], polygon[:, 1]
-    x1, z1 = np.roll(x0, -1), np.roll(z0, -1)
-    crosses = (z0 > z) != (z1 > z)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x_at = x0 + (z - z0) * (x1 - x0) / (z1 - z0)
-    return (crosses & (x < x_at)).sum(axis=1) % 2 == 1
-
-
-def _distance_to_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """Distance from each point (N, 2) to the polygon's boundary (M, 2) -> (N,)."""
-    a, b = polygon, np.roll(polygon, -1, axis=0)
-    ab = b - a  # (M, 2)
-    ap = points[:, None, :] - a[None]  # (N, M, 2)
-    t = np.clip((ap * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-12), 0.0, 1.0)
-    closest = a[None] + t[..., None] * ab[None]
-    return np.linalg.norm(points[:, None, :] - closest, axis=-1).min(axis=1)
-
-
-def validate_obstacles(obstacles: Sequence[Obstacle] | None) -> list[Obstacle]:
-    """Check obstacles are circles (x, z, r > 0) or polygons of >= 3 finite (x, z) vertices."""
-    checked: list[Obstacle] = []
-    for i, obstacle in enumerate(obstacles or []):
-        if _is_circle(obstacle):
-            x, z, r = (float(v) for v in obstacle)
-            if not (np.isfinite([x, z, r]).all() and r > 0):
-                raise ValueError(f"obstacle {i}: a circle needs finite (x, z) and radius > 0, got {obstacle}")
-            checked.append((x, z, r))
-        else:
-            poly = np.asarray(obstacle, dtype=np.float64)
-            if poly.ndim != 2 or poly.shape[1] != 2 or len(poly) < 3 or not np.isfinite(poly).all():
-                raise ValueError(
-                    f"obstacle {i}: expected a circle (x, z, r) or a polygon of >= 3 (x, z) vertices, "
-                    f"got shape {poly.shape}"
-                )
-            checked.append(poly)
-    return checked
-
-
-def obstacle_distance(points: np.ndarray, obstacles: Sequence[Obstacle]) -> np.ndarray:
-    """Signed distance (m) from each point (N, 2) to the nearest obstacle; negative inside."""
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    best = np.full(len(points), np.inf)
-    for obstacle in validate_obstacles(obstacles):
-        if _is_circle(obstacle):
-            x, z, r = obstacle
-            d = np.linalg.norm(points - np.array([x, z]), axis=1) - r
-        else:
-            poly = np.asarray(obstacle)
-            d = _distance_to_polygon(points, poly)
-            d = np.where(_points_in_polygon(points, poly), -d, d)
-        best = np.minimum(best, d)
-    return best
 
 
 class OccupancyGrid:
@@ -246,7 +186,7 @@ class AStarPolicy:
         else:
             pts = [position, self.goal]
             for o in self.obstacles:
-                if _is_circle(o):
+                if is_circle(o):
                     pts += [np.array(o[:2]) - o[2], np.array(o[:2]) + o[2]]
                 else:
                     pts += list(np.asarray(o))

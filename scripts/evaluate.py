@@ -40,10 +40,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.threads is not None:
         torch.set_num_threads(args.threads)
-    if args.random_model:
-        gen = MotionGenerator.random(device=args.device)
-    else:
-        gen = MotionGenerator.from_pretrained(args.model, device=args.device)
+    gen = MotionGenerator.from_pretrained("random" if args.random_model else args.model, device=args.device)
     results = evaluate(
         gen, args.data, max_clips=args.max_clips, seed=args.seed, stream=not args.no_stream,
         steering_seeds=args.steering_seeds, split=args.split,

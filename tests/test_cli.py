@@ -86,14 +86,19 @@ def test_train_reports_a_missing_dataset(tmp_path, capsys) -> None:
 def test_bench_runs_and_writes_json(tmp_path, capsys) -> None:
     out = tmp_path / "bench.json"
     args = ["bench", "--random-model", "--runs", "2", "--frames", "20", "--batch-sizes", "1,3"]
-    args += ["--stream-frames", "8", "--env-steps", "0", "--json", str(out)]
-    assert main(args) == 0
+    args += ["--stream-frames", "8", "--env-steps", "8", "--num-envs", "1,3", "--vector-steps", "3"]
+    assert main([*args, "--json", str(out)]) == 0
     results = json.loads(out.read_text())
+    env = results["env_step_ms"]
+    assert env["steps"] == 8 and env["p99"] >= env["median"] > 0
+    assert [r["num_envs"] for r in results["vector_env"]] == [1, 3]
+    assert all(r["frames_per_s"] > 0 for r in results["vector_env"])
     assert results["untrained"] is True
     assert results["clip_latency_ms"]["runs"] == 2 and results["clip_latency_ms"]["median"] > 0
     assert [s["batch"] for s in results["stream"]] == [1, 3]
     assert all(s["frames_per_s"] > 0 for s in results["stream"])
-    assert "clip latency" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "clip latency" in printed and "vector env throughput, N=3" in printed
 
 
 def _tiny_dataset(root: Path, clips: int = 6, frames: int = 61) -> Path:

@@ -2,8 +2,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from motion_env.envs.arena import obstacle_distance
 from policies import AStarPolicy, OccupancyGrid, RandomPolicy, WaypointPolicy, astar, smooth_path
-from policies.astar import obstacle_distance
 
 
 def _obs(x: float, z: float) -> dict[str, np.ndarray]:
@@ -62,7 +62,7 @@ def test_astar_policy_replans_when_goal_or_map_changes():
 def test_bad_inputs_raise_clear_errors():
     with pytest.raises(ValueError, match="goal"):
         AStarPolicy(goal=(np.nan, 1.0))
-    with pytest.raises(ValueError, match="obstacle 0"):
+    with pytest.raises(ValueError, match="obstacles\\[0\\]"):
         AStarPolicy(goal=(1.0, 1.0), obstacles=[(0.0, 0.0, -1.0)])
     with pytest.raises(ValueError, match="bounds"):
         OccupancyGrid((1, 0, 0, 1))

@@ -28,6 +28,8 @@ from typing import Any
 
 import numpy as np
 
+from motion_env.envs.arena import Obstacle, obstacle_distance
+from motion_env.generation.request import check_text
 from motion_env.motion.kinematics import from_heading_frame, to_heading_frame
 from motion_env.motion.skeleton import FPS, NUM_JOINTS
 from motion_env.motion.trajectory import validate_waypoints, wrap_angle
@@ -105,34 +107,6 @@ class EnvConfig:
 # ----------------------------------------------------------------------------------------------
 
 
-def validate_obstacles(obstacles: np.ndarray | Sequence | None) -> np.ndarray:
-    """Obstacles as (N, 3) float64 circles (x, z, radius); None or empty -> (0, 3)."""
-    if obstacles is None:
-        return np.zeros((0, 3))
-    try:
-        arr = np.array(obstacles, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"obstacles must be circles (N, 3) as (x, z, radius): {exc}") from exc
-    if arr.size == 0:
-        return np.zeros((0, 3))
-    if arr.shape == (3,):
-        arr = arr[None]
-    if arr.ndim != 2 or arr.shape[1] != 3:
-        raise ValueError(f"obstacles must have shape (N, 3) as (x, z, radius), got {arr.shape}")
-    if not np.isfinite(arr).all() or (arr[:, 2] <= 0).any():
-        raise ValueError(f"obstacles need finite (x, z) and radius > 0, got {arr.tolist()}")
-    return arr
-
-
-def obstacle_clearance(points_xz: np.ndarray, obstacles: np.ndarray) -> np.ndarray:
-    """Signed distance (m) from points (..., 2) to the nearest circle (negative inside); +inf if none."""
-    points_xz = np.asarray(points_xz, dtype=np.float64)
-    if len(obstacles) == 0:
-        return np.full(points_xz.shape[:-1], np.inf)
-    d = np.linalg.norm(points_xz[..., None, :] - obstacles[:, :2], axis=-1) - obstacles[:, 2]
-    return d.min(axis=-1)
-
-
 def validate_start(start: Any) -> np.ndarray:
     """A start pose as (3,) float64 x, z, heading (ValueError otherwise)."""
     try:
@@ -144,17 +118,11 @@ def validate_start(start: Any) -> np.ndarray:
     return arr
 
 
-def validate_text(text: Any) -> str:
-    if not isinstance(text, str) or not text.strip():
-        raise ValueError(f"text must be a non-empty string, got {text!r}")
-    return text
-
-
 def validate_text_pool(text_pool: Sequence[str] | None) -> tuple[str, ...]:
     pool = DEFAULT_TEXT_POOL if text_pool is None else tuple(text_pool)
     if isinstance(text_pool, str) or not pool:
         raise ValueError(f"text_pool must be a non-empty sequence of captions, got {text_pool!r}")
-    return tuple(validate_text(t) for t in pool)
+    return tuple(check_text(t, f"text_pool[{i}]") for i, t in enumerate(pool))
 
 
 def check_actions(
@@ -193,14 +161,14 @@ def check_actions(
     return np.clip(arr, -bound, bound), valid, clipped
 
 
-def sample_start(rng: np.random.Generator, config: EnvConfig, obstacles: np.ndarray) -> np.ndarray:
+def sample_start(rng: np.random.Generator, config: EnvConfig, obstacles: Sequence[Obstacle]) -> np.ndarray:
     """(3,) start pose: the origin facing +Z, or (random_start) a free spot and heading in the arena."""
     if not config.random_start:
         return np.zeros(3)
     half = 0.5 * config.arena_size
     for _ in range(100):
         x, z = rng.uniform(-half, half, size=2)
-        if obstacle_clearance(np.array([x, z]), obstacles) > _ROUTE_CLEARANCE:
+        if obstacle_distance(np.array([x, z]), obstacles) > _ROUTE_CLEARANCE:
             break
     return np.array([x, z, rng.uniform(-np.pi, np.pi)])
 
@@ -209,7 +177,7 @@ def sample_route(
     rng: np.random.Generator,
     start: np.ndarray,
     config: EnvConfig,
-    obstacles: np.ndarray,
+    obstacles: Sequence[Obstacle],
     num: int | None = None,
 ) -> np.ndarray:
     """A random untimed route (K, 3) from `start`: legs of 1.5-3.5 m, turns of at most 90 degrees.
@@ -228,7 +196,7 @@ def sample_route(
             heading = direction + rng.uniform(-spread, spread)
             point = pos + rng.uniform(*_LEG_LENGTH) * np.array([np.sin(heading), np.cos(heading)])
             inside = (np.abs(point) <= limit).all()
-            if inside and obstacle_clearance(point, obstacles) > _ROUTE_CLEARANCE:
+            if inside and obstacle_distance(point, obstacles) > _ROUTE_CLEARANCE:
                 break
             spread = min(np.pi, spread * 1.1)  # widen the search when boxed in
         out[i, :2] = np.clip(point, -limit, limit)
@@ -261,7 +229,7 @@ class CharacterBatch:
     frame comes with the next :meth:`emit_frame`.
     """
 
-    def __init__(self, config: EnvConfig, obstacles: np.ndarray) -> None:
+    def __init__(self, config: EnvConfig, obstacles: Sequence[Obstacle]) -> None:
         self.config = config
         self.obstacles = obstacles
         self.stream: Any = None
@@ -399,7 +367,7 @@ class CharacterBatch:
         self.progress += np.linalg.norm(self.prev_pos - target, axis=1) - np.linalg.norm(
             self.pos - target, axis=1
         )
-        self.collisions += obstacle_clearance(self.pos, self.obstacles) < 0.0
+        self.collisions += obstacle_distance(self.pos, self.obstacles) < 0.0
         self._advance_routes(frame)
 
     def _advance_routes(self, frame: np.ndarray) -> None:

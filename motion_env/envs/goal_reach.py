@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from motion_env.envs.core import obstacle_clearance
+from motion_env.envs.arena import obstacle_distance
 from motion_env.envs.waypoints import WaypointsEnv
 from motion_env.motion.skeleton import NUM_JOINTS
 
@@ -108,7 +108,7 @@ class GoalReachEnv(WaypointsEnv):
             point = start[:2] + self.np_random.uniform(*_GOAL_DISTANCE) * np.array(
                 [np.sin(angle), np.cos(angle)]
             )
-            if (np.abs(point) <= limit).all() and obstacle_clearance(point, self.obstacles) > 0.6:
+            if (np.abs(point) <= limit).all() and obstacle_distance(point, self.obstacles) > 0.6:
                 break
         point = np.clip(point, -limit, limit)
         return np.array([point[0], point[1], np.nan], np.float32)

@@ -16,18 +16,18 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from motion_env.envs.arena import validate_obstacles
 from motion_env.envs.core import (
     CharacterBatch,
     EnvConfig,
     check_actions,
     sample_route,
     sample_start,
-    validate_obstacles,
     validate_start,
-    validate_text,
     validate_text_pool,
 )
 from motion_env.envs.waypoints import make_generator, observation_space
+from motion_env.generation.request import check_text
 from motion_env.motion.skeleton import FPS
 from motion_env.motion.trajectory import validate_waypoints
 
@@ -128,7 +128,7 @@ class WaypointsVectorEnv(VectorEnv):
         if unknown:
             raise ValueError(f"unknown reset options {unknown}; known: {list(_RESET_OPTIONS)}")
         if options.get("text") is not None:
-            options["text"] = validate_text(options["text"])
+            options["text"] = check_text(options["text"])
         if options.get("waypoints") is not None:
             options["waypoints"] = validate_waypoints(options["waypoints"])
         if options.get("start") is not None:
@@ -183,7 +183,7 @@ class WaypointsVectorEnv(VectorEnv):
             raise RuntimeError("call reset() first")
         if index is not None and not 0 <= int(index) < self.num_envs:
             raise IndexError(f"index {index} out of range for {self.num_envs} envs")
-        self._batch.set_text(validate_text(text), index=None if index is None else int(index))
+        self._batch.set_text(text, index=None if index is None else int(index))  # the stream checks it
 
     def close(self, **kwargs: Any) -> None:
         self._batch.stream = None

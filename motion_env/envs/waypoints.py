@@ -9,17 +9,17 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from motion_env.envs.arena import circles, validate_obstacles
 from motion_env.envs.core import (
     CharacterBatch,
     EnvConfig,
     check_actions,
     sample_route,
     sample_start,
-    validate_obstacles,
     validate_start,
-    validate_text,
     validate_text_pool,
 )
+from motion_env.generation.request import check_text
 from motion_env.motion.skeleton import FPS, NUM_JOINTS
 from motion_env.motion.trajectory import validate_waypoints
 
@@ -134,8 +134,10 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     ```
     - ``generator``: a :class:`motion_env.MotionGenerator` (None loads the shipped model, or ``model_path``).
     - ``text_pool``: captions a reset without ``options["text"]`` draws from.
-    - ``obstacles``: circles (N, 3) as (x, z, radius) in metres; drawn, avoided by random routes,
-      penalised by ``reward_collision`` (the generator itself does not see them).
+    - ``obstacles``: circles ``(x, z, radius)`` and/or polygons ``[(x, z), ...]`` in metres
+      (:mod:`motion_env.envs.arena`, shared with the A* planner); circles are drawn; all are
+      avoided by random routes and penalised by ``reward_collision`` (the generator itself does
+      not see them).
     - ``render_mode="rgb_array"``: a picture of the character with its trail, route, current
       command (target) and obstacles; ``render_style="stick"`` (a stick figure, matplotlib) or
       ``"humanoid"`` (the MuJoCo humanoid of :mod:`motion_env.replay`, needs offscreen OpenGL:
@@ -244,7 +246,7 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         if self._batch.stream is None:
             raise RuntimeError("call reset() before render()")
         batch = self._batch
-        obstacles = self.obstacles if len(self.obstacles) else None
+        obstacles = circles(self.obstacles) if len(self.obstacles) else None
         if self.render_style == "humanoid":
             if self._view is None:
                 from motion_env.envs.humanoid_view import HumanoidView
@@ -277,7 +279,7 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     def set_text(self, text: str) -> None:
         """Change the caption mid-episode; the motion blends into the new one without a pop."""
         self._require_episode()
-        self._batch.set_text(validate_text(text), index=0)
+        self._batch.set_text(text, index=0)  # the stream checks the caption
 
     def set_route(self, waypoints: np.ndarray | Sequence) -> None:
         """Replace the route mid-episode ((K, 2) or (K, 3), times = absolute frame indices).
@@ -311,7 +313,7 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             raise ValueError(f"unknown reset options {unknown}; known: {list(self.reset_options)}")
         rng = self.np_random
         text = options.get("text")
-        text = self.text_pool[int(rng.integers(len(self.text_pool)))] if text is None else validate_text(text)
+        text = self.text_pool[int(rng.integers(len(self.text_pool)))] if text is None else check_text(text)
         start = options.get("start")
         start = sample_start(rng, self.config, self.obstacles) if start is None else validate_start(start)
         route = self._route(options, start)

@@ -1,6 +1,6 @@
 """Latency and throughput of the generator and the environment (``motion-env bench``).
 
-What is measured (PRODUCT.md's definitions):
+What is measured (the definitions of ``docs/metrics.md``):
 
 - clip latency: wall time of :meth:`MotionGenerator.generate` for a 200-frame clip with a caption
   and timed waypoints, batch 1, after warm-up; median and 90th percentile of ``runs`` runs, each
@@ -9,7 +9,12 @@ What is measured (PRODUCT.md's definitions):
   with B = 1, 16, 64 characters (each on its own route), after the first step (which rolls the
   controller's look-ahead);
 - environment step: wall time of ``env.step`` of ``motion_env/Waypoints-v0`` (one frame per step),
-  median and 99th percentile over ``env_steps`` steps, the agent issuing the route target.
+  median and 99th percentile over ``env_steps`` steps, the agent issuing the route target;
+- vector-env throughput: frames per second of the natively batched vector env
+  (``vectorization_mode="vector_entry_point"``) with N = 1, 16, 64 characters following random
+  routes, over ``vector_steps`` steps after a warm-up.
+
+This is the project's one bench; ``motion-env bench`` runs it and prints a table.
 """
 
 from __future__ import annotations
@@ -108,6 +113,38 @@ def time_env(generator: Any, steps: int = 1000) -> dict[str, float]:
     return {**_percentiles(times, (90, 99)), "steps": steps, "episodes_reset": resets}
 
 
+def vector_throughput(
+    generator: Any, num_envs: int, steps: int = 200, warmup: int = 20, seed: int = 0
+) -> dict:
+    """Frames per second of the batched vector env with `num_envs` characters (one frame per step)."""
+    import gymnasium as gym
+
+    import motion_env  # noqa: F401  (registers the environments)
+
+    envs = gym.make_vec(
+        "motion_env/Waypoints-v0",
+        num_envs=num_envs,
+        vectorization_mode="vector_entry_point",
+        generator=generator,
+        terminate_on_arrival=False,
+        max_episode_steps=steps + warmup + 1,
+    )
+    _, infos = envs.reset(seed=seed)
+    for _ in range(warmup):
+        _, _, _, _, infos = envs.step(infos["route_target"])
+    start = time.perf_counter()
+    for _ in range(steps):
+        _, _, _, _, infos = envs.step(infos["route_target"])
+    elapsed = time.perf_counter() - start
+    envs.close()
+    return {
+        "num_envs": num_envs,
+        "steps": steps,
+        "ms_per_step": 1000.0 * elapsed / steps,
+        "frames_per_s": num_envs * steps / elapsed,
+    }
+
+
 def hardware() -> dict[str, Any]:
     """What the numbers were measured on."""
     info: dict[str, Any] = {
@@ -132,16 +169,15 @@ def run_bench(
     stream_frames: int = 100,
     env_steps: int = 1000,
     threads: int | None = None,
+    num_envs: tuple[int, ...] | list[int] = (1, 16, 64),
+    vector_steps: int = 200,
 ) -> dict[str, Any]:
     """Every measurement of this module on one generator; a JSON-ready dict."""
-    from motion_env.generation.generator import MotionGenerator
+    from motion_env.generation.generator import RANDOM_MODEL, MotionGenerator
 
     if threads is not None:
         torch.set_num_threads(int(threads))
-    if random_model:
-        gen = MotionGenerator.random(device=device)
-    else:
-        gen = MotionGenerator.from_pretrained(model, device=device)
+    gen = MotionGenerator.from_pretrained(RANDOM_MODEL if random_model else model, device=device)
     gen.encode_text([BENCH_TEXT])  # load the text encoder outside the timings
     results: dict[str, Any] = {
         "model": gen.name,
@@ -159,6 +195,8 @@ def run_bench(
             results["env_step_ms"] = time_env(gen, env_steps)
         except ImportError as exc:  # the environment package is optional for the generator
             results["env_step_ms"] = {"skipped": str(exc)}
+    if vector_steps > 0:
+        results["vector_env"] = [vector_throughput(gen, n, steps=vector_steps) for n in num_envs]
     return results
 
 
@@ -192,6 +230,9 @@ def format_results(results: dict[str, Any]) -> str:
         lines.append(_row(f"env step ({env['steps']} steps, p99)", env["median"], env["p99"], "ms", 2))
     elif env:
         lines.append(f"env step: skipped ({env['skipped']})")
+    for row in results.get("vector_env", []):
+        n, fps = row["num_envs"], row["frames_per_s"]
+        lines.append(_row(f"vector env throughput, N={n}", fps, None, "frames/s", 0))
     lines.append(
         f"streaming: the controller runs {results['stream_lookahead_frames']} frames ahead (paid on the "
         f"first step); a new caption/route acts within {results['control_delay_frames']} frames"

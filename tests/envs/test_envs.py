@@ -438,28 +438,3 @@ def test_issuing_the_route_reaches_its_end_without_pops(trained, edits):
     steps = np.linalg.norm(np.diff(joints, axis=0), axis=-1)  # (T-1, 22)
     frame, joint = np.unravel_index(steps.argmax(), steps.shape)
     assert steps.max() <= 0.35, f"joint {joint} moved {steps.max():.2f} m from frame {frame} to {frame + 1}"
-
-
-def test_bench_reports_latency_and_throughput(tmp_path, capsys):
-    from motion_env.envs import bench
-
-    out = tmp_path / "bench.json"
-    argv = [
-        "--random-model",
-        "--steps",
-        "8",
-        "--vector-steps",
-        "3",
-        "--num-envs",
-        "1",
-        "3",
-        "--json",
-        str(out),
-    ]
-    result = bench.main(argv)
-    assert (
-        result["latency"]["steps"] == 8 and result["latency"]["p99_ms"] >= result["latency"]["median_ms"] > 0
-    )
-    assert [r["num_envs"] for r in result["throughput"]] == [1, 3]
-    assert all(r["frames_per_s"] > 0 for r in result["throughput"])
-    assert "p99" in capsys.readouterr().out and out.is_file()
