@@ -13,7 +13,9 @@ from scipy.spatial.transform import Rotation
 
 from motion_env import motion as M
 from motion_env import skeleton as S
-from motion_env.io.bvh import bvh_world_positions, load_bvh, map_joint_names, read_bvh
+from motion_env.io.bvh import load_bvh
+from motion_env.io.bvh_file import bvh_world_positions, read_bvh
+from motion_env.io.joint_names import map_joint_names
 from motion_env.io.load import load_motion
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
