@@ -58,13 +58,17 @@ def require_data() -> Callable[[str], Path]:
 
 
 @pytest.fixture(scope="session")
-def humanml3d_sample(require_data: Callable[[str], Path]) -> tuple[np.ndarray, np.ndarray]:
-    """The HumanML3D reference clip: (T, 22, 3) joints and (T-1, 263) features, float32."""
-    root = require_data("humanml3d_sample")
+def _humanml3d_arrays(require_data: Callable[[str], Path]) -> tuple[np.ndarray, np.ndarray]:
     joints = require_data(f"humanml3d_sample/new_joints/{HUMANML3D_CLIP}.npy")
     features = require_data(f"humanml3d_sample/new_joint_vecs/{HUMANML3D_CLIP}.npy")
-    del root
     return np.load(joints).astype(np.float32), np.load(features).astype(np.float32)
+
+
+@pytest.fixture
+def humanml3d_sample(_humanml3d_arrays: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """The HumanML3D reference clip: (T, 22, 3) joints and (T-1, 263) features, float32 (fresh copies)."""
+    joints, features = _humanml3d_arrays
+    return joints.copy(), features.copy()
 
 
 @pytest.fixture(scope="session")

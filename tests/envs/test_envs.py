@@ -26,17 +26,14 @@ os.environ.setdefault("HF_HUB_OFFLINE", "1")
 torch.set_num_threads(1)
 
 
-@pytest.fixture(scope="module")
-def gen():
-    return motion_env.MotionGenerator.random(seed=0)
+@pytest.fixture
+def gen(random_generator):
+    return random_generator
 
 
-@pytest.fixture(scope="module")
-def trained():
-    try:
-        return motion_env.MotionGenerator.from_pretrained()
-    except FileNotFoundError as exc:
-        pytest.skip(f"the shipped model is not installed: {exc}")
+@pytest.fixture
+def trained(pretrained_generator):
+    return pretrained_generator
 
 
 def _make(gen, env_id="motion_env/Waypoints-v0", **kwargs):

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,8 +24,6 @@ from motion_env.evaluation.routes import (
     wrist_heights,
 )
 from motion_env.motion.skeleton import FPS
-
-BANDAI = Path(__file__).resolve().parents[3] / "shared" / "data" / "bandai" / "dataset-2" / "bvh"
 
 
 @pytest.mark.parametrize("kind", ["line", "arc", "zigzag", "scurve"])
@@ -69,17 +66,17 @@ def test_heldout_captions_use_new_words() -> None:
     assert heldout_caption("dance", "", "the take's own caption") == "the take's own caption"
 
 
-@pytest.mark.skipif(not BANDAI.is_dir(), reason="real mocap (shared/data/bandai) not present")
-def test_speed_cadence_and_wrists_on_real_takes() -> None:
+def test_speed_cadence_and_wrists_on_real_takes(require_data) -> None:
     from motion_env.io.bvh import load_bvh
 
-    walk = load_bvh(BANDAI / "dataset-2_walk_normal_001.bvh.gz").joints
-    run = load_bvh(BANDAI / "dataset-2_run_normal_001.bvh.gz").joints
+    bandai = require_data("bandai/dataset-2/bvh")
+    walk = load_bvh(bandai / "dataset-2_walk_normal_001.bvh.gz").joints
+    run = load_bvh(bandai / "dataset-2_run_normal_001.bvh.gz").joints
     walk_speed, walk_cadence = speed_and_cadence(walk)
     run_speed, run_cadence = speed_and_cadence(run)
     assert 0.8 < walk_speed < 1.8 and 1.2 < walk_cadence < 2.5
     assert run_speed > walk_speed + 0.8 and run_cadence > walk_cadence
-    wave = load_bvh(BANDAI / "dataset-2_wave-right-hand_normal_001.bvh.gz").joints
+    wave = load_bvh(bandai / "dataset-2_wave-right-hand_normal_001.bvh.gz").joints
     assert wrist_heights(wave)["right_minus_left_cm"] > 30
 
 

@@ -9,16 +9,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from motion_env.generation.generator import DEFAULT_WEIGHTS, WEIGHT_FILES, MotionGenerator, SamplingConfig
+from motion_env.generation.generator import WEIGHT_FILES, MotionGenerator, SamplingConfig
 from motion_env.motion.skeleton import FPS, NUM_JOINTS
 from motion_env.motion.types import Motion
 
 ROUTE = [[0.0, 2.0, 40], [2.0, 4.0, 100]]
 
 
-@pytest.fixture(scope="module")
-def gen() -> MotionGenerator:
-    return MotionGenerator.random(seed=0)
+@pytest.fixture
+def gen(random_generator: MotionGenerator) -> MotionGenerator:
+    return random_generator
 
 
 def _pelvis_xz(joints: np.ndarray) -> np.ndarray:
@@ -206,12 +206,8 @@ def test_from_pretrained_names_what_is_missing(tmp_path) -> None:
         MotionGenerator.from_pretrained(tmp_path)
 
 
-@pytest.mark.skipif(
-    not all((DEFAULT_WEIGHTS / f).is_file() for f in WEIGHT_FILES.values()),
-    reason="the shipped weights are not packaged in motion_env/weights",
-)
-def test_shipped_model_follows_a_route() -> None:
-    gen = MotionGenerator.from_pretrained()
+def test_shipped_model_follows_a_route(pretrained_generator: MotionGenerator) -> None:
+    gen = pretrained_generator
     assert not gen.untrained
     route = [[0.0, 2.5, 50], [2.0, 4.5, 110]]
     m = gen.generate("a person walks forward and turns right", waypoints=route, num_frames=120, seed=0)

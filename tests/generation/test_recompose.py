@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,15 +15,6 @@ from motion_env.motion.kinematics import heading_from_joints
 from motion_env.motion.skeleton import FOOT_JOINTS
 from motion_env.motion.trajectory import root_path_from_joints, waypoint_errors, wrap_angle
 
-SAMPLE = Path(__file__).resolve().parents[3] / "shared" / "data" / "humanml3d_sample"
-
-
-def _sample() -> tuple[np.ndarray, np.ndarray]:
-    j, f = SAMPLE / "new_joints" / "012314.npy", SAMPLE / "new_joint_vecs" / "012314.npy"
-    if not (j.is_file() and f.is_file()):
-        pytest.skip(f"real HumanML3D sample not found under {SAMPLE}")
-    return np.load(j).astype(np.float32), np.load(f).astype(np.float32)
-
 
 def _curve(num: int) -> np.ndarray:
     """An S-shaped walk at ~1.2 m/s whose heading wobbles up to 15 degrees off the travel direction."""
@@ -35,8 +25,8 @@ def _curve(num: int) -> np.ndarray:
     return np.stack([x, z, travel + np.radians(15) * np.sin(3 * t)], 1).astype(np.float32)
 
 
-def test_recompose_round_trips_real_motion() -> None:
-    joints, features = _sample()
+def test_recompose_round_trips_real_motion(humanml3d_sample) -> None:
+    joints, features = humanml3d_sample
     path = root_path_from_joints(joints)
     local = rc.local_pose_from_joints(joints, path)
     np.testing.assert_allclose(local[:, 0, [0, 2]], 0, atol=1e-6)
@@ -48,8 +38,8 @@ def test_recompose_round_trips_real_motion() -> None:
     )
 
 
-def test_recompose_puts_the_pelvis_on_the_path_facing_travel() -> None:
-    joints, _ = _sample()
+def test_recompose_puts_the_pelvis_on_the_path_facing_travel(humanml3d_sample) -> None:
+    joints, _ = humanml3d_sample
     # A local pose whose own facing is exactly +Z in every frame (factor out the raw heading).
     local = rc.local_pose_from_joints(joints, root_path_from_joints(joints, smooth_sigma=0))
     path = _curve(len(local))
@@ -126,8 +116,8 @@ def test_foot_skating_ratio_definition() -> None:
     assert foot_skating_ratio(joints[:1]) == 0.0
 
 
-def test_foot_pinner_reduces_skating_and_keeps_the_legs() -> None:
-    joints, features = _sample()
+def test_foot_pinner_reduces_skating_and_keeps_the_legs(humanml3d_sample) -> None:
+    joints, features = humanml3d_sample
     # Skating clip: the body glides forward 4 cm per frame on top of its own motion, so every planted
     # foot slides (what a root path faster than the legs produces). The pinner holds a foot at most
     # FOOT_MAX_OFFSET from where the body puts it (no pops), so long contacts still slide in part.
@@ -150,8 +140,8 @@ def test_foot_pinner_reduces_skating_and_keeps_the_legs() -> None:
             )
 
 
-def test_foot_pinner_leaves_free_motion_alone() -> None:
-    joints, _ = _sample()
+def test_foot_pinner_leaves_free_motion_alone(humanml3d_sample) -> None:
+    joints, _ = humanml3d_sample
     lifted = joints.copy()
     lifted[..., 1] += 1.0
     none = np.zeros((len(joints), 4))

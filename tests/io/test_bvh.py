@@ -18,9 +18,8 @@ from motion_env.io.bvh_file import bvh_world_positions, read_bvh
 from motion_env.io.joint_names import map_joint_names
 from motion_env.io.load import load_motion
 
-DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
-BANDAI = DATA / "bandai" / "dataset-2" / "bvh"
-CMU = DATA / "cmu" / "bvh"
+BANDAI = "bandai/dataset-2/bvh"
+CMU = "cmu/bvh"
 
 # --- synthetic BVH files ---------------------------------------------------------------------------
 
@@ -460,12 +459,6 @@ def test_non_bvh_content(tmp_path: Path):
 # --- real mocap ------------------------------------------------------------------------------------
 
 
-def _real(path: Path) -> Path:
-    if not path.is_file():
-        pytest.skip(f"real mocap file not found at {path} (shared data is not present)")
-    return path
-
-
 def _check_real_clip(joints: np.ndarray, walking: bool = True) -> None:
     """Floor, pelvis height, start pose, and left/right judged against where the feet point."""
     lowest = joints[:, list(S.FOOT_JOINTS), 1].min(axis=1)  # (T,) lowest foot joint per frame
@@ -487,8 +480,8 @@ def _check_real_clip(joints: np.ndarray, walking: bool = True) -> None:
 
 
 @pytest.mark.parametrize("name", ["walk_normal_001", "walk_elderly_010", "run_normal_001", "run_active_005"])
-def test_bandai_walks_and_runs_go_forward(name: str):
-    path = _real(BANDAI / f"dataset-2_{name}.bvh.gz")
+def test_bandai_walks_and_runs_go_forward(name: str, require_data):
+    path = require_data(f"{BANDAI}/dataset-2_{name}.bvh.gz")
     motion = load_motion(path)
     assert motion.fps == S.FPS and motion.meta["source"] == str(path) and motion.meta["dropped_frames"] == "0"
     j = motion.joints
@@ -499,8 +492,8 @@ def test_bandai_walks_and_runs_go_forward(name: str):
 
 @pytest.mark.parametrize("turn", ["left", "right"])
 @pytest.mark.parametrize("take", ["normal_001", "youthful_002", "exhausted_003"])
-def test_bandai_turns_turn_the_right_way(turn: str, take: str):
-    j = load_bvh(_real(BANDAI / f"dataset-2_walk-turn-{turn}_{take}.bvh.gz")).joints
+def test_bandai_turns_turn_the_right_way(turn: str, take: str, require_data):
+    j = load_bvh(require_data(f"{BANDAI}/dataset-2_walk-turn-{turn}_{take}.bvh.gz")).joints
     _check_real_clip(j)
     theta = np.unwrap(M.heading_from_joints(j))
     sign = 1.0 if turn == "left" else -1.0  # θ grows turning left: facing +Z, left is +X
@@ -508,8 +501,8 @@ def test_bandai_turns_turn_the_right_way(turn: str, take: str):
     assert sign * j[-1, 0, 0] > 0.5 and np.linalg.norm(j[-1, 0, [0, 2]]) > 1.0
 
 
-def test_cmu_daz_walk_imports_and_walks():
-    path = _real(CMU / "02_01.bvh.gz")
+def test_cmu_daz_walk_imports_and_walks(require_data):
+    path = require_data(f"{CMU}/02_01.bvh.gz")
     motion = load_bvh(path)
     assert 3 <= int(motion.meta["dropped_frames"]) <= 12  # frame 0 T-pose plus the blend out of it
     assert motion.meta["units"] == "cm" and motion.meta["source_fps"] == "120"
@@ -522,11 +515,11 @@ def test_cmu_daz_walk_imports_and_walks():
 
 
 @pytest.mark.slow
-def test_every_shared_bvh_imports():
+def test_every_shared_bvh_imports(shared_data):
     """A sample of every 25th file under shared/data (all of them with MOTION_ENV_ALL_BVH=1)."""
-    files = sorted(DATA.glob("**/*.bvh*"))
+    files = sorted(shared_data.glob("**/*.bvh*"))
     if not files:
-        pytest.skip(f"no BVH files under {DATA} (shared data is not present)")
+        pytest.skip(f"no BVH files under {shared_data}")
     if os.environ.get("MOTION_ENV_ALL_BVH") != "1":
         files = files[::25]
     failures, start = {}, time.perf_counter()

@@ -10,9 +10,8 @@ import pytest
 import torch
 
 from motion_env.models.checkpoint import export_checkpoint, load_checkpoint, read_checkpoint, save_checkpoint
+from motion_env.models.normalizer import Normalizer
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
-
-SAMPLE = Path(__file__).resolve().parents[3] / "shared" / "data" / "humanml3d_sample"
 
 
 @pytest.fixture(autouse=True)
@@ -128,13 +127,12 @@ def test_codebook_ema_moves_and_resets_dead_codes() -> None:
     torch.testing.assert_close(q.code_sum[:5] / q.code_count[:5, None], after[:5])
 
 
-def test_overfits_real_clip() -> None:
+def test_overfits_real_clip(humanml3d_sample, require_data) -> None:
     """A few steps on a real clip lower the loss (the model can learn at all)."""
-    if not SAMPLE.is_dir():
-        pytest.skip(f"real sample data not found at {SAMPLE}")
-    feats = np.load(SAMPLE / "new_joint_vecs" / "012314.npy").astype(np.float32)
-    mean, std = np.load(SAMPLE / "Mean.npy"), np.load(SAMPLE / "Std.npy")
-    x = torch.from_numpy((feats[:64] - mean) / std).float()[None]
+    _, feats = humanml3d_sample
+    stats = require_data("humanml3d_sample")
+    normalizer = Normalizer(np.load(stats / "Mean.npy"), np.load(stats / "Std.npy"))
+    x = torch.from_numpy(normalizer.normalize(feats[:64])).float()[None]
     model = tiny().train()
     opt = torch.optim.Adam(model.parameters(), lr=2e-3)
     losses = []

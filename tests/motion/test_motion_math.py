@@ -2,24 +2,12 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from motion_env import motion as M
 from motion_env import skeleton as S
 from motion_env.motion import kinematics
-
-SAMPLE = Path(__file__).resolve().parents[3] / "shared" / "data" / "humanml3d_sample"
-
-
-def _sample() -> tuple[np.ndarray, np.ndarray]:
-    """(new_joints (T, 22, 3), new_joint_vecs (T, 263)) of the HumanML3D reference clip."""
-    joints, vecs = SAMPLE / "new_joints" / "012314.npy", SAMPLE / "new_joint_vecs" / "012314.npy"
-    if not (joints.is_file() and vecs.is_file()):
-        pytest.skip(f"HumanML3D reference clip not found under {SAMPLE} (shared data is not present)")
-    return np.load(joints), np.load(vecs)
 
 
 def _synthetic_clip(seed: int = 0, frames: int = 60, lengths: np.ndarray = S.BONE_LENGTHS) -> np.ndarray:
@@ -134,8 +122,8 @@ def test_fk_ik_round_trip_synthetic() -> None:
     np.testing.assert_allclose(M.qrot(local[:, 0], np.array([0.0, 0, 1]))[:, 1], 0.0, atol=1e-12)
 
 
-def test_fk_ik_round_trip_on_reference_clip() -> None:
-    joints, _ = _sample()
+def test_fk_ik_round_trip_on_reference_clip(humanml3d_sample) -> None:
+    joints, _ = humanml3d_sample
     root, local = M.inverse_kinematics(joints)
     rebuilt = M.forward_kinematics(root, local, M.bone_offsets(M.bone_lengths(joints)))
     np.testing.assert_allclose(rebuilt, joints, atol=1e-6)
@@ -161,8 +149,8 @@ def test_canonicalize_properties() -> None:
     np.testing.assert_allclose(M.canonicalize(out), out, atol=1e-5)
 
 
-def test_canonicalize_keeps_reference_clip() -> None:
-    joints, _ = _sample()
+def test_canonicalize_keeps_reference_clip(humanml3d_sample) -> None:
+    joints, _ = humanml3d_sample
     out = M.canonicalize(joints)
     # Already canonical up to the floor rule (HumanML3D floors the lowest joint of the whole clip).
     np.testing.assert_allclose(out[..., [0, 2]], joints[..., [0, 2]], atol=1e-4)
@@ -224,8 +212,8 @@ def test_wrong_shapes_raise_clear_errors() -> None:
 # ---------------------------------------------------------------------------------------------
 
 
-def test_features_match_humanml3d_reference() -> None:
-    joints, vecs = _sample()
+def test_features_match_humanml3d_reference(humanml3d_sample) -> None:
+    joints, vecs = humanml3d_sample
     # recover_from_ric: the reference new_joints are exactly what HumanML3D decodes from new_joint_vecs.
     np.testing.assert_allclose(M.features_to_joints(vecs), joints, atol=1e-4)
     # process_file: the clip is one frame shorter than the one HumanML3D encoded, so the

@@ -3,23 +3,12 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from motion_env.models import path_features
 from motion_env.motion import trajectory as paths
-from motion_env.motion.kinematics import heading_from_joints, rotate_y
-
-SAMPLE = Path(__file__).resolve().parents[3] / "shared" / "data" / "humanml3d_sample"
-
-
-def _sample_joints() -> np.ndarray:
-    f = SAMPLE / "new_joints" / "012314.npy"
-    if not f.is_file():
-        pytest.skip(f"real HumanML3D sample not found at {f}")
-    return np.load(f).astype(np.float32)
+from motion_env.motion.kinematics import heading_from_joints
 
 
 def _line(num: int, speed: float, theta: float) -> np.ndarray:
@@ -27,8 +16,8 @@ def _line(num: int, speed: float, theta: float) -> np.ndarray:
     return np.stack([math.sin(theta) * speed * t, math.cos(theta) * speed * t, np.full(num, theta)], 1)
 
 
-def test_root_path_from_real_joints() -> None:
-    joints = _sample_joints()
+def test_root_path_from_real_joints(humanml3d_sample) -> None:
+    joints = humanml3d_sample[0]
     raw = paths.root_path_from_joints(joints, smooth_sigma=0)
     smooth = paths.root_path_from_joints(joints)
     assert raw.shape == smooth.shape == (len(joints), 3) and raw.dtype == np.float32
@@ -69,33 +58,6 @@ def test_validate_waypoints_accepts_and_fills_nan_times() -> None:
 def test_validate_waypoints_errors(bad: object, match: str) -> None:
     with pytest.raises(ValueError, match=match):
         paths.validate_waypoints(bad)
-
-
-def test_token_path_features_straight_walk() -> None:
-    feats = path_features.token_path_features(_line(61, 1.4, 0.7), rate=4)
-    assert feats.shape == (16, path_features.D_PATH) and feats.dtype == np.float32
-    # Walking forward at 1.4 m/s: forward velocity 1.4, no lateral motion, no turn, over both horizons.
-    np.testing.assert_allclose(feats[:-1, [1, 4]], 1.4, atol=1e-4)
-    np.testing.assert_allclose(feats[:-1, [0, 2, 3, 5]], 0, atol=1e-4)
-    np.testing.assert_allclose(feats[-1], 0, atol=1e-6)  # last frame: nothing ahead
-
-
-def test_token_path_features_invariant_to_placement_and_sees_turns() -> None:
-    t = np.arange(80) / 20.0
-    theta = 0.8 * t  # turning left at 0.8 rad/s while walking forward at 1 m/s
-    x = np.cumsum(np.sin(theta)) / 20.0
-    z = np.cumsum(np.cos(theta)) / 20.0
-    path = np.stack([x, z, theta], 1)
-    feats = path_features.token_path_features(path, rate=4)
-    moved = path.copy()
-    pts = rotate_y(np.stack([path[:, 0], np.zeros(80), path[:, 1]], 1), 2.0)
-    moved[:, 0], moved[:, 1] = pts[:, 0] + 5.0, pts[:, 2] - 3.0
-    moved[:, 2] = paths.wrap_angle(path[:, 2] + 2.0)  # wrapped headings are unwrapped internally
-    np.testing.assert_allclose(path_features.token_path_features(moved, 4), feats, atol=1e-4)
-    np.testing.assert_allclose(feats[:10, [2, 5]], 0.8, atol=1e-3)
-    assert (feats[:10, 0] > 0).all()  # the path bends towards the character's left
-    with pytest.raises(ValueError, match="rate"):
-        path_features.token_path_features(path, 0)
 
 
 def test_relative_waypoints_in_heading_frame() -> None:
