@@ -12,23 +12,21 @@ prints whether the goal was reached and how close the pelvis came to an obstacle
 
 from __future__ import annotations
 
-import argparse
 import json
-from dataclasses import asdict, dataclass, fields
-from pathlib import Path
+from dataclasses import asdict, dataclass
 
 import gymnasium as gym
 import numpy as np
-import torch
 
 import motion_env
+from motion_env.args import ExampleArgs, parse_dataclass
 from motion_env.envs.arena import obstacle_distance
-from motion_env.render.stick import plot_path, render_video
+from motion_env.render import plot_path, render_video
 from policies import AStarPolicy
 
 
 @dataclass
-class Args:
+class Args(ExampleArgs):
     out: str = "runs/astar_obstacles"  # output folder
     text: str = "a person walks forward"  # caption
     goal_x: float = 1.0  # goal, world metres
@@ -36,13 +34,6 @@ class Args:
     max_steps: int = 600  # 30 s at 20 fps
     clearance: float = 0.6  # how far the planned pelvis path keeps from obstacles (m)
     lookahead: float = 1.0  # carrot distance along the plan (m)
-    seed: int = 0
-    model: str = ""  # checkpoint to load; empty = the shipped model
-    threads: int = 1  # torch threads: the generator's small per-frame ops run fastest on one
-    random_model: bool = False  # tiny random weights instead (smoke tests: fast, walks nowhere useful)
-    video: str = "mp4"  # mp4 or gif
-    width: int = 640
-    height: int = 480
 
 
 # Circles (x, z, radius) between the start (origin, facing +Z) and the goal.
@@ -50,25 +41,11 @@ OBSTACLES = np.array([[0.0, 3.0, 1.0], [2.2, 5.6, 0.8], [-0.2, 6.6, 0.6]])
 
 
 def parse_args(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    for f in fields(Args):
-        flag = "--" + f.name.replace("_", "-")
-        if isinstance(f.default, bool):
-            parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=f.default)
-        else:
-            parser.add_argument(flag, type=type(f.default), default=f.default)
-    return Args(**vars(parser.parse_args(argv)))
+    return parse_dataclass(Args, argv, description=__doc__)
 
 
 def main(args: Args) -> dict:
-    torch.set_num_threads(args.threads)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    generator = motion_env.MotionGenerator.from_pretrained(
-        "random" if args.random_model else args.model or None
-    )
+    out, generator = args.setup()
 
     goal = np.array([args.goal_x, args.goal_z])
     env = gym.make(

@@ -14,22 +14,20 @@ and overall. Writes a video (edit frames highlighted), a top-down plot and the m
 
 from __future__ import annotations
 
-import argparse
 import json
-from dataclasses import asdict, dataclass, fields
-from pathlib import Path
+from dataclasses import asdict, dataclass
 
 import gymnasium as gym
 import numpy as np
-import torch
 
 import motion_env
-from motion_env.render.stick import plot_path, render_video
+from motion_env.args import ExampleArgs, parse_dataclass
+from motion_env.render import plot_path, render_video
 from policies import WaypointPolicy
 
 
 @dataclass
-class Args:
+class Args(ExampleArgs):
     out: str = "runs/edit_path_midrollout"  # output folder
     text: str = "a person walks forward"  # the first caption
     text2: str = "a person jogs forward"  # caption from --text-step on
@@ -38,13 +36,6 @@ class Args:
     path_step: int = 80  # the agent switches to the new points here (while still walking)
     text2_step: int = 150
     max_steps: int = 500
-    seed: int = 0
-    model: str = ""  # checkpoint to load; empty = the shipped model
-    threads: int = 1  # torch threads: the generator's small per-frame ops run fastest on one
-    random_model: bool = False  # tiny random weights instead (smoke tests)
-    video: str = "mp4"  # mp4 or gif
-    width: int = 640
-    height: int = 480
 
 
 ROUTE = np.array([[0.0, 4.0], [0.0, 9.0]], np.float32)  # the route given at reset: straight north
@@ -52,16 +43,7 @@ NEW_POINTS = np.array([[-2.5, 6.0], [-4.0, 3.0], [-2.0, 0.5]], np.float32)  # th
 
 
 def parse_args(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    for f in fields(Args):
-        flag = "--" + f.name.replace("_", "-")
-        if isinstance(f.default, bool):
-            parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=f.default)
-        else:
-            parser.add_argument(flag, type=type(f.default), default=f.default)
-    return Args(**vars(parser.parse_args(argv)))
+    return parse_dataclass(Args, argv, description=__doc__)
 
 
 def max_step_near(joints: np.ndarray, frame: int, window: int = 10) -> float:
@@ -73,12 +55,7 @@ def max_step_near(joints: np.ndarray, frame: int, window: int = 10) -> float:
 
 
 def main(args: Args) -> dict:
-    torch.set_num_threads(args.threads)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    generator = motion_env.MotionGenerator.from_pretrained(
-        "random" if args.random_model else args.model or None
-    )
+    out, generator = args.setup()
 
     env = gym.make("motion_env/Waypoints-v0", generator=generator, terminate_on_arrival=False,
                    max_episode_steps=args.max_steps)  # fmt: skip

@@ -17,17 +17,15 @@ Needs the optional extra: pip install -c constraints.txt "motion-env[rl]"  (stab
 
 from __future__ import annotations
 
-import argparse
 import json
-from dataclasses import asdict, dataclass, fields
-from pathlib import Path
+from dataclasses import asdict, dataclass
 
 import gymnasium as gym
 import numpy as np
-import torch
 
 import motion_env
-from motion_env.render.stick import plot_path, render_video
+from motion_env.args import ExampleArgs, parse_dataclass
+from motion_env.render import plot_path, render_video
 
 try:
     from stable_baselines3 import SAC, HerReplayBuffer
@@ -36,7 +34,7 @@ except ImportError:  # the optional "rl" extra
 
 
 @dataclass
-class Args:
+class Args(ExampleArgs):
     out: str = "runs/goal_reach_her"  # output folder
     total_timesteps: int = 3000  # env steps of training
     learning_starts: int = 200  # random steps before the first update
@@ -49,26 +47,10 @@ class Args:
     goal_x: float = 2.0  # the evaluation goal, world metres
     goal_z: float = 3.0
     text: str = "a person walks forward"  # caption of the evaluation rollout
-    seed: int = 0
-    model: str = ""  # checkpoint to load; empty = the shipped model
-    threads: int = 1  # torch threads: the generator's small per-frame ops run fastest on one
-    random_model: bool = False  # tiny random weights instead (smoke tests)
-    video: str = "mp4"  # mp4 or gif
-    width: int = 640
-    height: int = 480
 
 
 def parse_args(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    for f in fields(Args):
-        flag = "--" + f.name.replace("_", "-")
-        if isinstance(f.default, bool):
-            parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=f.default)
-        else:
-            parser.add_argument(flag, type=type(f.default), default=f.default)
-    return Args(**vars(parser.parse_args(argv)))
+    return parse_dataclass(Args, argv, description=__doc__)
 
 
 def make_env(generator: object, args: Args, max_steps: int) -> gym.Env:
@@ -100,12 +82,7 @@ def main(args: Args) -> dict:
             "stable-baselines3 is not installed; install the optional extra: "
             'pip install -c constraints.txt "motion-env[rl]"'
         )
-    torch.set_num_threads(args.threads)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    generator = motion_env.MotionGenerator.from_pretrained(
-        "random" if args.random_model else args.model or None
-    )
+    out, generator = args.setup()
 
     # Train: a random goal 1.5-4 m away every episode; HER relabels with goals reached later on.
     env = make_env(generator, args, args.episode_steps)

@@ -15,17 +15,15 @@ Needs the optional extra: pip install -c constraints.txt "motion-env[rl]"  (stab
 
 from __future__ import annotations
 
-import argparse
 import json
-from dataclasses import asdict, dataclass, fields
-from pathlib import Path
+from dataclasses import asdict, dataclass
 
 import gymnasium as gym
 import numpy as np
-import torch
 
 import motion_env
-from motion_env.render.stick import plot_path, render_video
+from motion_env.args import ExampleArgs, parse_dataclass, parse_waypoints
+from motion_env.render import plot_path, render_video
 
 try:
     from stable_baselines3 import PPO
@@ -34,7 +32,7 @@ except ImportError:  # the optional "rl" extra
 
 
 @dataclass
-class Args:
+class Args(ExampleArgs):
     out: str = "runs/sb3_ppo"  # output folder
     total_timesteps: int = 4000  # env steps of training
     n_steps: int = 256  # rollout length per PPO update
@@ -46,26 +44,10 @@ class Args:
     eval_steps: int = 150  # decisions in the evaluation rollout
     eval_route: str = "0,3;3,5;5,2"  # the evaluation route "x,z;..." (world metres)
     text: str = "a person walks forward"  # caption of the evaluation rollout
-    seed: int = 0
-    model: str = ""  # checkpoint to load; empty = the shipped model
-    threads: int = 1  # torch threads: the generator's small per-frame ops run fastest on one
-    random_model: bool = False  # tiny random weights instead (smoke tests)
-    video: str = "mp4"  # mp4 or gif
-    width: int = 640
-    height: int = 480
 
 
 def parse_args(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    for f in fields(Args):
-        flag = "--" + f.name.replace("_", "-")
-        if isinstance(f.default, bool):
-            parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=f.default)
-        else:
-            parser.add_argument(flag, type=type(f.default), default=f.default)
-    return Args(**vars(parser.parse_args(argv)))
+    return parse_dataclass(Args, argv, description=__doc__)
 
 
 def make_env(generator: object, args: Args, max_steps: int) -> gym.Env:
@@ -99,12 +81,7 @@ def main(args: Args) -> dict:
             "stable-baselines3 is not installed; install the optional extra: "
             'pip install -c constraints.txt "motion-env[rl]"'
         )
-    torch.set_num_threads(args.threads)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    generator = motion_env.MotionGenerator.from_pretrained(
-        "random" if args.random_model else args.model or None
-    )
+    out, generator = args.setup()
 
     # Train: random captions and routes every episode (drawn by the env from its seed).
     env = make_env(generator, args, args.episode_steps)
@@ -116,7 +93,7 @@ def main(args: Args) -> dict:
     env.close()
 
     # Evaluate on a fixed route: the trained agent, then a random one for comparison.
-    route = np.array([[float(v) for v in row.split(",")] for row in args.eval_route.split(";")], np.float32)
+    route = np.array(parse_waypoints(args.eval_route, "--eval-route"), np.float32)[:, :2]
     eval_env = make_env(generator, args, args.eval_steps)
     joints, ppo_return, reached = rollout(
         eval_env, lambda o: model.predict(o, deterministic=True)[0], route, args.text, args.seed

@@ -12,64 +12,34 @@ distance to each waypoint at its closest approach and the largest joint move bet
 
 from __future__ import annotations
 
-import argparse
 import json
-from dataclasses import asdict, dataclass, fields
-from pathlib import Path
+from dataclasses import asdict, dataclass
 
 import gymnasium as gym
 import numpy as np
-import torch
 
 import motion_env
+from motion_env.args import ExampleArgs, parse_dataclass, parse_waypoints
 from motion_env.motion.trajectory import waypoint_errors
-from motion_env.render.stick import plot_path, render_video
+from motion_env.render import plot_path, render_video
 from policies import WaypointPolicy
 
 
 @dataclass
-class Args:
+class Args(ExampleArgs):
     out: str = "runs/waypoints_demo"  # output folder
     text: str = "a person walks forward"  # caption
     route: str = "0,3;2.5,5.5;5,5;6,2"  # waypoints "x,z[,frame];..." in world metres
     max_steps: int = 800
-    seed: int = 0
-    model: str = ""  # checkpoint to load; empty = the shipped model
-    threads: int = 1  # torch threads: the generator's small per-frame ops run fastest on one
-    random_model: bool = False  # tiny random weights instead (smoke tests)
-    video: str = "mp4"  # mp4 or gif
-    width: int = 640
-    height: int = 480
 
 
 def parse_args(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    for f in fields(Args):
-        flag = "--" + f.name.replace("_", "-")
-        if isinstance(f.default, bool):
-            parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=f.default)
-        else:
-            parser.add_argument(flag, type=type(f.default), default=f.default)
-    return Args(**vars(parser.parse_args(argv)))
-
-
-def parse_route(text: str) -> np.ndarray:
-    """'x,z[,frame];...' -> (K, 2), or (K, 3) with NaN (untimed) where a row gives no frame."""
-    rows = [[float(v) for v in row.split(",")] for row in text.split(";") if row.strip()]
-    width = max(len(r) for r in rows)
-    return np.array([r + [np.nan] * (width - len(r)) for r in rows], dtype=np.float32)
+    return parse_dataclass(Args, argv, description=__doc__)
 
 
 def main(args: Args) -> dict:
-    torch.set_num_threads(args.threads)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    generator = motion_env.MotionGenerator.from_pretrained(
-        "random" if args.random_model else args.model or None
-    )
-    route = parse_route(args.route)
+    out, generator = args.setup()
+    route = np.array(parse_waypoints(args.route, "--route"), np.float32)
 
     env = gym.make("motion_env/Waypoints-v0", generator=generator, max_episode_steps=args.max_steps)
     obs, info = env.reset(seed=args.seed, options={"text": args.text, "waypoints": route})

@@ -185,26 +185,6 @@ def _run_train(args: argparse.Namespace) -> int:
     return 0
 
 
-def _parse_waypoints(text: str) -> list[list[float]]:
-    """Parse the --waypoints option: "x,z;x,z,t;..." -> rows of 3 (NaN time for "x,z")."""
-    rows = []
-    for k, item in enumerate(part for part in text.split(";") if part.strip()):
-        try:
-            values = [float(v) for v in item.split(",")]
-        except ValueError as exc:
-            raise ValueError(
-                f"--waypoints item {k} {item.strip()!r} is not 'x,z' or 'x,z,t' numbers"
-            ) from exc
-        if len(values) not in (2, 3):
-            raise ValueError(
-                f"--waypoints item {k} {item.strip()!r} has {len(values)} numbers, expected 2 or 3"
-            )
-        rows.append(values + [float("nan")] * (3 - len(values)))
-    if not rows:
-        raise ValueError("--waypoints is empty; give 'x,z,t;x,z,t' (t = frame index at 20 fps, optional)")
-    return rows
-
-
 def _add_generate(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("generate", help="text + waypoints -> a motion (.npz) and a video")
     p.add_argument("--text", required=True, help='caption, e.g. "a person walks slowly"')
@@ -230,9 +210,10 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_generate(args: argparse.Namespace) -> int:
+    from motion_env.args import parse_waypoints
     from motion_env.generation.generator import MotionGenerator
 
-    waypoints = None if args.waypoints is None else _parse_waypoints(args.waypoints)
+    waypoints = None if args.waypoints is None else parse_waypoints(args.waypoints)
     start = None
     if args.start is not None:
         try:
@@ -249,7 +230,7 @@ def _run_generate(args: argparse.Namespace) -> int:
     out = motion.save(args.out)
     print(f"wrote {out} ({motion.num_frames} frames, {motion.duration:.1f} s)")
     if args.video or args.plot:
-        from motion_env.render.stick import plot_path, render_video
+        from motion_env.render import plot_path, render_video
 
         if args.video:
             print(f"wrote {render_video(motion, args.video)}")

@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from motion_env.cli import _parse_waypoints, main
+from motion_env.args import parse_waypoints
+from motion_env.cli import main
 from motion_env.motion.types import Motion
 
 _ENCODERS: dict[str, object] = {}
@@ -29,12 +30,12 @@ def _shared_text_encoder(monkeypatch) -> None:
 
 
 def test_parse_waypoints_mixes_timed_and_untimed() -> None:
-    rows = np.array(_parse_waypoints("0,2,40; 2,4 ;"))
+    rows = np.array(parse_waypoints("0,2,40; 2,4 ;"))
     np.testing.assert_array_equal(rows[0], [0, 2, 40])
     assert rows[1, :2].tolist() == [2, 4] and np.isnan(rows[1, 2])
     for bad in ("0,2,x", "1,2,3,4", " ; "):
         with pytest.raises(ValueError, match="--waypoints"):
-            _parse_waypoints(bad)
+            parse_waypoints(bad)
 
 
 def test_generate_writes_npz_video_and_plot(tmp_path, capsys) -> None:

@@ -26,6 +26,15 @@ from motion_env.motion.skeleton import RIC as RIC_SLICE
 if TYPE_CHECKING:
     import torch
 
+__all__ = [
+    "FACING_SMOOTH_SIGMA",
+    "FOOT_CONTACT_THRESHOLD",
+    "features_to_joints",
+    "features_to_joints_torch",
+    "joints_to_features",
+    "recover_root",
+]
+
 FOOT_CONTACT_THRESHOLD = 0.002
 """HumanML3D's ``feet_thre``: a foot joint is in contact when its squared displacement to the
 next frame is below this (m², i.e. slower than about 4.5 cm per frame at 20 fps; no height test)."""

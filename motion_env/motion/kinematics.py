@@ -38,6 +38,25 @@ from motion_env.motion.skeleton import (
     RAW_OFFSETS,
 )
 
+__all__ = [
+    "ROTATION_PARENTS",
+    "bone_lengths",
+    "bone_offsets",
+    "canonicalize",
+    "chain_local_rotations",
+    "floor_height",
+    "forward_kinematics",
+    "from_heading_frame",
+    "heading_from_joints",
+    "inverse_kinematics",
+    "mirror",
+    "resample",
+    "retarget",
+    "rotate_y",
+    "to_heading_frame",
+    "with_bone_lengths",
+]
+
 
 def _rotation_parents() -> tuple[int, ...]:
     parents = [-1] * NUM_JOINTS

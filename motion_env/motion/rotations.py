@@ -11,6 +11,24 @@ import numpy as np
 
 from motion_env.motion.checks import EPS, check_last
 
+__all__ = [
+    "matrix_to_rot6d",
+    "qbetween",
+    "qfix",
+    "qinv",
+    "qmul",
+    "qnormalize",
+    "qrot",
+    "quat_from_axis_angle",
+    "quat_from_matrix",
+    "quat_from_yaw",
+    "quat_to_axis_angle",
+    "quat_to_matrix",
+    "quat_to_rot6d",
+    "rot6d_to_matrix",
+    "rot6d_to_quat",
+]
+
 
 def qnormalize(q: np.ndarray) -> np.ndarray:
     """Unit quaternions (..., 4)."""

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -12,15 +11,6 @@ import torch
 from motion_env.models.checkpoint import export_checkpoint, load_checkpoint, read_checkpoint, save_checkpoint
 from motion_env.models.normalizer import Normalizer
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
-
-
-@pytest.fixture(autouse=True)
-def one_thread() -> Iterator[None]:
-    """Tiny models run fastest single-threaded, and the CPU is shared."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
 
 
 def tiny(rate: int = 4, **kw) -> VQVAE:
