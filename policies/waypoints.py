@@ -18,7 +18,7 @@ class WaypointPolicy:
         wp = np.asarray(waypoints, dtype=np.float32)
         if wp.ndim != 2 or wp.shape[1] not in (2, 3) or len(wp) == 0:
             raise ValueError(f"waypoints must have shape (K, 2) or (K, 3) with K >= 1, got {wp.shape}")
-        if not np.isfinite(wp[:, :2]).all():  # a NaN time marks an untimed waypoint (PRODUCT.md)
+        if not np.isfinite(wp[:, :2]).all():  # a NaN time marks an untimed waypoint (docs/conventions.md)
             raise ValueError("waypoints contain NaN or infinite x/z values")
         if radius <= 0:
             raise ValueError(f"radius must be positive, got {radius}")

@@ -3,7 +3,7 @@
     python scripts/calibrate_replay.py --data ../shared/data [--workers 2] [--stride 1]
 
 Takes: every Bandai Namco and CMU BVH under --data, loaded with `motion_env.load_bvh`, split by
-take with `motion_env.dataset.split_of` (the split `motion-env data build` gives them: the
+take with `motion_env.data.dataset.split_of` (the split `motion-env data build` gives them: the
 Bandai file stem, `cmu_<trial>` for CMU). CMU trials that do not happen on a flat floor
 (playground, ladder, steps, stools, uneven terrain: see OFF_FLOOR) are left out; the replay
 scene has nothing but a floor.
@@ -212,7 +212,9 @@ def main(argv: list[str] | None = None) -> int:
             "margin": MARGIN,
             "minimum": MINIMUM,
             "calibration_takes": len(values[CHECKS[0]]),
-            "calibration_split": "train (motion_env.dataset.split_of), flat-floor Bandai Namco and CMU takes",
+            "calibration_split": (
+                "train (motion_env.data.dataset.split_of), flat-floor Bandai Namco and CMU takes"
+            ),
             "stride": args.stride,
         },
         "calibration_values": stats,

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import torch
 
-from motion_env.evaluation.routes import evaluate, format_results
+from motion_env.evaluation.suite import evaluate_generator, format_results
 from motion_env.generation.generator import MotionGenerator
 
 
@@ -41,7 +41,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.threads is not None:
         torch.set_num_threads(args.threads)
     gen = MotionGenerator.from_pretrained("random" if args.random_model else args.model, device=args.device)
-    results = evaluate(
+    results = evaluate_generator(
         gen, args.data, max_clips=args.max_clips, seed=args.seed, stream=not args.no_stream,
         steering_seeds=args.steering_seeds, split=args.split,
     )  # fmt: skip

@@ -3,7 +3,9 @@
 - root error: :func:`motion_env.motion.trajectory.waypoint_errors` (pure path math, used by the
   trainers too) averaged over waypoints;
 - foot skating: :func:`foot_skating_ratio`;
-- foot contacts of a clip without contact labels: :func:`detect_foot_contacts`.
+- foot contacts of a clip without contact labels: :func:`detect_foot_contacts`;
+- route following over many clips: :func:`route_summary` (root, location and trajectory error);
+- caption steering: :func:`speed_and_cadence`, :func:`wrist_heights`, :func:`heading_change`.
 """
 
 from __future__ import annotations
@@ -11,10 +13,22 @@ from __future__ import annotations
 import numpy as np
 
 from motion_env.motion.checks import check_joints
-from motion_env.motion.skeleton import FOOT_JOINTS, FPS
+from motion_env.motion.skeleton import FOOT_JOINTS, FPS, JOINT_INDEX
+from motion_env.motion.trajectory import root_path_from_joints
 
-__all__ = ["SKATE_HEIGHT", "SKATE_STEP", "detect_foot_contacts", "foot_skating_ratio"]
+__all__ = [
+    "MISS",
+    "SKATE_HEIGHT",
+    "SKATE_STEP",
+    "detect_foot_contacts",
+    "foot_skating_ratio",
+    "heading_change",
+    "route_summary",
+    "speed_and_cadence",
+    "wrist_heights",
+]
 
+MISS = 0.5  # metres: a waypoint missed by more than this counts in the location/trajectory errors
 # Foot skating: a foot joint below this height (m) ...
 SKATE_HEIGHT = 0.05
 # ... that moves more than this (m) horizontally from the previous frame (at 20 fps).
@@ -57,3 +71,47 @@ def detect_foot_contacts(joints: np.ndarray, margin: float = 0.03, max_speed: fl
     if len(contact) > 2:
         contact[1:-1] &= ~lone[1:-1]
     return contact
+
+
+def route_summary(errors: list[np.ndarray]) -> dict[str, float]:
+    """Per-clip waypoint misses (m) -> root error (cm), location/trajectory error, max miss (cm)."""
+    if not errors:
+        return {"clips": 0}
+    flat = np.concatenate(errors)
+    return {
+        "root_error_cm": float(flat.mean() * 100),
+        "location_error": float((flat > MISS).mean()),
+        "trajectory_error": float(np.mean([e.max() > MISS for e in errors])),
+        "max_miss_cm": float(flat.max() * 100),
+        "clips": len(errors),
+        "waypoints": int(flat.size),
+    }
+
+
+def speed_and_cadence(joints: np.ndarray, skip: int = 20) -> tuple[float, float]:
+    """Mean pelvis speed (m/s) and cadence (foot strikes per second) after the first `skip` frames."""
+    j = np.asarray(joints, np.float64)[skip:]
+    if len(j) < 2:
+        return 0.0, 0.0
+    xz = j[:, 0, [0, 2]]
+    speed = float(np.linalg.norm(np.diff(xz, axis=0), axis=1).sum() / (len(j) - 1) * FPS)
+    contact = detect_foot_contacts(j)  # (T, 4): left ankle, left toe, right ankle, right toe
+    strikes = 0
+    for foot in (contact[:, :2].any(axis=1), contact[:, 2:].any(axis=1)):
+        strikes += int(np.sum(foot[1:] & ~foot[:-1]))
+    return speed, strikes / ((len(j) - 1) / FPS)
+
+
+def wrist_heights(joints: np.ndarray) -> dict[str, float]:
+    """Mean right- and left-wrist height above the pelvis (cm) and their difference."""
+    j = np.asarray(joints, np.float64)
+    right = (j[:, JOINT_INDEX["right_wrist"], 1] - j[:, 0, 1]).mean() * 100
+    left = (j[:, JOINT_INDEX["left_wrist"], 1] - j[:, 0, 1]).mean() * 100
+    return {"right_cm": float(right), "left_cm": float(left), "right_minus_left_cm": float(right - left)}
+
+
+def heading_change(joints: np.ndarray) -> float:
+    """How far the body turns over a clip (degrees; positive = counterclockwise seen from above,
+    a left turn for a body facing +Z with +X on its left)."""
+    heading = np.unwrap(root_path_from_joints(np.asarray(joints, np.float64))[:, 2])
+    return float(np.rad2deg(heading[-1] - heading[0]))

@@ -1,6 +1,6 @@
-"""Evaluation of a generator: route following, foot skating and caption steering (scripts/evaluate.py).
+"""Route following: the routes a generator is asked to follow, and how well it follows them.
 
-Route following (PRODUCT.md's definitions), on two sets of routes:
+Two sets of routes (definitions of the numbers in ``docs/metrics.md``):
 
 - held-out takes: the test split's own root paths, with timed waypoints every 2-3 s taken from
   the take (and its last frame), the character starting where the take starts; captions are
@@ -8,79 +8,25 @@ Route following (PRODUCT.md's definitions), on two sets of routes:
 - synthetic routes: lines, arcs, zigzags and S-curves at walking (1.0-1.5 m/s) and running
   (2.5-3.5 m/s) pace, timed waypoints every 2-3 s, with new walking / running captions.
 
-Per set: root error (mean XZ distance between the pelvis at a waypoint's frame and the waypoint,
-cm), location error (share of waypoints missed by > 50 cm), trajectory error (share of clips
-with any waypoint missed by > 50 cm) and the largest miss, for the final motions, for the
+Per set: root error, location error, trajectory error and the largest miss
+(:func:`~motion_env.evaluation.metrics.route_summary`), for the final motions, for the
 controller's path alone (before the path is bent through the waypoints) and, on the synthetic
-routes, for streaming (:meth:`MotionGenerator.stream`). Foot skating ratio of all generated
-clips vs the real test takes, measured the same way.
-
-Caption steering: mean speed and cadence (steps/s, from foot contacts) for running vs walking
-captions on an untimed route and without a route; right- vs left-wrist height for "waves with the
-right/left hand"; heading change for left- vs right-turn captions without a route; speed of
-"exhausted" / "elderly" vs "active" walks. The same numbers on real
-takes of the dataset with those labels are given for reference.
+routes, for streaming (:meth:`MotionGenerator.stream`); foot skating of every generated clip.
 """
 
 from __future__ import annotations
 
 import csv
-import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from motion_env.evaluation.metrics import detect_foot_contacts, foot_skating_ratio
-from motion_env.motion.skeleton import FPS, JOINT_INDEX
+from motion_env.evaluation.captions import RUN_CAPTIONS, WALK_CAPTIONS, heldout_caption
+from motion_env.evaluation.metrics import foot_skating_ratio, route_summary
+from motion_env.motion.skeleton import FPS
 from motion_env.motion.trajectory import root_path_from_joints, waypoint_errors
-
-MISS = 0.5  # metres: a waypoint missed by more than this counts in the location/trajectory errors
-
-# Captions written for the evaluation, in words and sentence frames the training captions
-# (motion_env/captions.py) do not use.
-WALK_CAPTIONS = (
-    "someone ambles along at an easy, unhurried gait",
-    "a man makes his way forward on foot at a comfortable clip",
-    "the character saunters ahead calmly",
-)
-RUN_CAPTIONS = (
-    "someone hurries along at full tilt, feet pounding",
-    "a woman races ahead as fast as her legs allow",
-    "the character bolts forward at top speed",
-)
-# For contrast only: running captions in the training phrasing (captions.py).
-RUN_CAPTIONS_TRAINING_PHRASING = ("a person runs forward", "someone jogs straight ahead")
-WAVE_RIGHT = ("standing still, someone greets a friend by waving with the right hand",)
-WAVE_LEFT = ("standing still, someone greets a friend by waving with the left hand",)
-TURN_LEFT = ("a man makes his way forward on foot, then curves off leftward",)
-TURN_RIGHT = ("a man makes his way forward on foot, then curves off rightward",)
-STYLE_CAPTIONS = {
-    "exhausted": ("drained and out of breath, an exhausted man drags himself forward",),
-    "elderly": ("an elderly gentleman in his nineties makes his way forward with care",),
-    "active": ("full of pep, an active young woman heads forward",),
-}
-# Held-out takes: the take's action and style in new words.
-ACTION_WORDS = {
-    "walk": "makes their way straight ahead on foot",
-    "walk-turn-left": "makes their way forward on foot, curving off leftward",
-    "walk-turn-right": "makes their way forward on foot, curving off rightward",
-    "walk-left": "heads forward on foot, drifting off leftward",
-    "walk-right": "heads forward on foot, drifting off rightward",
-    "run": "hurries ahead at full tilt",
-    "dash": "bolts ahead at top speed",
-    "wave-both-hands": "greets someone, both arms swinging overhead",
-    "wave-left-hand": "greets someone, swinging the left arm overhead",
-    "wave-right-hand": "greets someone, swinging the right arm overhead",
-    "raise-up-both-hands": "lifts both arms up above the head",
-    "raise-up-left-hand": "lifts the left arm up above the head",
-    "raise-up-right-hand": "lifts the right arm up above the head",
-}
-STYLE_WORDS = {
-    "active": "a peppy", "elderly": "a frail old", "exhausted": "a drained", "feminine": "a graceful",
-    "masculine": "a burly", "normal": "an ordinary", "youthful": "a teenage",
-}  # fmt: skip
 
 
 @dataclass
@@ -93,11 +39,6 @@ class Case:
     start: np.ndarray
     num_frames: int
     group: str
-
-
-# --------------------------------------------------------------------------------------------
-# Routes
-# --------------------------------------------------------------------------------------------
 
 
 def _waypoint_frames(num_frames: int, rng: np.random.Generator) -> list[int]:
@@ -158,19 +99,12 @@ def synthetic_cases(num_frames: int = 200, repeats: int = 2, seed: int = 0) -> l
     return cases
 
 
-def _read_index(data_dir: Path) -> dict[str, dict[str, str]]:
+def read_index(data_dir: Path) -> dict[str, dict[str, str]]:
     path = data_dir / "index.csv"
     if not path.is_file():
         return {}
     with path.open(newline="", encoding="utf-8") as f:
         return {row["name"]: row for row in csv.DictReader(f)}
-
-
-def heldout_caption(label: str, style: str, fallback: str) -> str:
-    """A caption for a held-out take written from its labels in new words (or `fallback`)."""
-    if label not in ACTION_WORDS:
-        return fallback
-    return f"{STYLE_WORDS.get(style, 'a')} person {ACTION_WORDS[label]}"
 
 
 def heldout_cases(
@@ -183,7 +117,7 @@ def heldout_cases(
     from motion_env.data.dataset import read_split
 
     data_dir = Path(data_dir)
-    index = _read_index(data_dir)
+    index = read_index(data_dir)
     clips = [c for c in read_split(data_dir, split) if len(c.joints) >= min_frames and ":" not in c.name]
     rng = np.random.default_rng(seed)
     if len(clips) > max_clips:
@@ -203,65 +137,6 @@ def heldout_cases(
         )
         real.append(joints)
     return cases, real
-
-
-# --------------------------------------------------------------------------------------------
-# Metrics
-# --------------------------------------------------------------------------------------------
-
-
-def route_summary(errors: list[np.ndarray]) -> dict[str, float]:
-    """Per-clip waypoint misses (m) -> root error (cm), location/trajectory error, max miss (cm)."""
-    if not errors:
-        return {"clips": 0}
-    flat = np.concatenate(errors)
-    return {
-        "root_error_cm": float(flat.mean() * 100),
-        "location_error": float((flat > MISS).mean()),
-        "trajectory_error": float(np.mean([e.max() > MISS for e in errors])),
-        "max_miss_cm": float(flat.max() * 100),
-        "clips": len(errors),
-        "waypoints": int(flat.size),
-    }
-
-
-def speed_and_cadence(joints: np.ndarray, skip: int = 20) -> tuple[float, float]:
-    """Mean pelvis speed (m/s) and cadence (foot strikes per second) after the first `skip` frames."""
-    j = np.asarray(joints, np.float64)[skip:]
-    if len(j) < 2:
-        return 0.0, 0.0
-    xz = j[:, 0, [0, 2]]
-    speed = float(np.linalg.norm(np.diff(xz, axis=0), axis=1).sum() / (len(j) - 1) * FPS)
-    contact = detect_foot_contacts(j)  # (T, 4): left ankle, left toe, right ankle, right toe
-    strikes = 0
-    for foot in (contact[:, :2].any(axis=1), contact[:, 2:].any(axis=1)):
-        strikes += int(np.sum(foot[1:] & ~foot[:-1]))
-    return speed, strikes / ((len(j) - 1) / FPS)
-
-
-def wrist_heights(joints: np.ndarray) -> dict[str, float]:
-    """Mean right- and left-wrist height above the pelvis (cm) and their difference."""
-    j = np.asarray(joints, np.float64)
-    right = (j[:, JOINT_INDEX["right_wrist"], 1] - j[:, 0, 1]).mean() * 100
-    left = (j[:, JOINT_INDEX["left_wrist"], 1] - j[:, 0, 1]).mean() * 100
-    return {"right_cm": float(right), "left_cm": float(left), "right_minus_left_cm": float(right - left)}
-
-
-def heading_change(joints: np.ndarray) -> float:
-    """How far the body turns over a clip (degrees; positive = counterclockwise seen from above,
-    a left turn for a body facing +Z with +X on its left)."""
-    heading = np.unwrap(root_path_from_joints(np.asarray(joints, np.float64))[:, 2])
-    return float(np.rad2deg(heading[-1] - heading[0]))
-
-
-def _mean_std(values: list[float]) -> dict[str, float]:
-    arr = np.asarray(values, np.float64)
-    return {"mean": float(arr.mean()), "std": float(arr.std()), "n": int(arr.size)}
-
-
-# --------------------------------------------------------------------------------------------
-# Running the generator
-# --------------------------------------------------------------------------------------------
 
 
 def _generate(
@@ -320,180 +195,3 @@ def evaluate_routes(
         out["stream_foot_skating"] = float(np.mean([foot_skating_ratio(j) for j in streamed]))
         joints = joints + streamed
     return out, joints
-
-
-def caption_steering(gen: Any, seeds: int = 4, num_frames: int = 200, seed: int = 0) -> dict[str, Any]:
-    """Speed/cadence for run vs walk captions, wrist heights for waves, speed for walking styles."""
-    # Far enough that a run does not arrive (and slow down) within the clip.
-    untimed = np.array([[0.0, 4.0 * k] for k in range(1, 11)], np.float32)
-
-    def run(texts: tuple[str, ...], route: np.ndarray | None, frames: int = num_frames) -> list[np.ndarray]:
-        batch = [t for t in texts for _ in range(seeds)]
-        return [
-            m.joints
-            for m in gen.generate_batch(batch, None if route is None else [route] * len(batch), frames, seed)
-        ]
-
-    out: dict[str, Any] = {}
-    for route_name, route in (("untimed_route", untimed), ("no_route", None)):
-        for pace, texts in (("walk", WALK_CAPTIONS), ("run", RUN_CAPTIONS)):
-            sc = [speed_and_cadence(j) for j in run(texts, route)]
-            out[f"{pace}_{route_name}"] = {
-                "speed_mps": _mean_std([s for s, _ in sc]),
-                "cadence_steps_per_s": _mean_std([c for _, c in sc]),
-            }
-    sc = [speed_and_cadence(j) for j in run(RUN_CAPTIONS_TRAINING_PHRASING, untimed)]
-    out["run_training_phrasing_untimed_route"] = {
-        "speed_mps": _mean_std([s for s, _ in sc]),
-        "cadence_steps_per_s": _mean_std([c for _, c in sc]),
-    }
-    for side, texts in (("wave_right", WAVE_RIGHT), ("wave_left", WAVE_LEFT)):
-        heights = [wrist_heights(j) for j in run(texts, None, 120)]
-        out[side] = {k: _mean_std([h[k] for h in heights]) for k in heights[0]}
-    for side, texts in (("turn_left", TURN_LEFT), ("turn_right", TURN_RIGHT)):
-        out[side] = {"heading_change_deg": _mean_std([heading_change(j) for j in run(texts, None)])}
-    for style, texts in STYLE_CAPTIONS.items():
-        sc = [speed_and_cadence(j) for j in run(texts, untimed)]
-        out[f"walk_{style}"] = {
-            "speed_mps": _mean_std([s for s, _ in sc]),
-            "cadence_steps_per_s": _mean_std([c for _, c in sc]),
-        }
-    return out
-
-
-def real_reference(data_dir: str | Path, max_per_group: int = 40, seed: int = 0) -> dict[str, Any]:
-    """The steering numbers on real takes of the dataset (all splits) with matching labels."""
-    data_dir = Path(data_dir)
-    index = _read_index(data_dir)
-    if not index:
-        return {"skipped": f"no index.csv in {data_dir}"}
-    rng = np.random.default_rng(seed)
-    groups = {
-        "walk": lambda r: r["label"] == "walk",
-        "run": lambda r: r["label"] == "run",
-        "wave_right": lambda r: r["label"] == "wave-right-hand",
-        "wave_left": lambda r: r["label"] == "wave-left-hand",
-        "turn_left": lambda r: r["label"] == "walk-turn-left",
-        "turn_right": lambda r: r["label"] == "walk-turn-right",
-        "walk_exhausted": lambda r: r["label"] == "walk" and r["style"] == "exhausted",
-        "walk_elderly": lambda r: r["label"] == "walk" and r["style"] == "elderly",
-        "walk_active": lambda r: r["label"] == "walk" and r["style"] == "active",
-    }
-    out: dict[str, Any] = {}
-    for name, keep in groups.items():
-        names = sorted(n for n, r in index.items() if r.get("source") == "bandai" and keep(r))
-        if not names:
-            continue
-        names = [names[i] for i in rng.choice(len(names), min(max_per_group, len(names)), replace=False)]
-        clips = [np.load(data_dir / "new_joints" / f"{n}.npy") for n in names]
-        if name.startswith("wave"):
-            heights = [wrist_heights(j) for j in clips]
-            out[name] = {k: _mean_std([h[k] for h in heights]) for k in heights[0]}
-        elif name.startswith("turn"):
-            out[name] = {"heading_change_deg": _mean_std([heading_change(j) for j in clips])}
-        else:
-            sc = [speed_and_cadence(j) for j in clips]
-            out[name] = {
-                "speed_mps": _mean_std([s for s, _ in sc]),
-                "cadence_steps_per_s": _mean_std([c for _, c in sc]),
-            }
-    return out
-
-
-def evaluate(
-    gen: Any,
-    data_dir: str | Path | None,
-    max_clips: int = 64,
-    seed: int = 0,
-    stream: bool = True,
-    steering_seeds: int = 4,
-    split: str = "test",
-) -> dict[str, Any]:
-    """Every measurement of this module; a JSON-ready dict (held-out takes from `split`)."""
-    t0 = time.perf_counter()
-    results: dict[str, Any] = {"model": gen.name, "untrained": gen.untrained, "seed": seed, "split": split}
-    generated: list[np.ndarray] = []
-    if data_dir is not None:
-        cases, real = heldout_cases(data_dir, max_clips, seed=seed, split=split)
-        results["heldout"], joints = evaluate_routes(gen, cases, seed, stream=False)
-        generated += joints
-        results["real_foot_skating"] = float(np.mean([foot_skating_ratio(j) for j in real]))
-        results["real_foot_skating_groups"] = {
-            group: float(
-                np.mean([foot_skating_ratio(j) for j, c in zip(real, cases, strict=True) if c.group == group])
-            )
-            for group in sorted({c.group for c in cases})
-        }
-        results["reference"] = real_reference(data_dir, seed=seed)
-    synthetic = synthetic_cases(seed=seed)
-    results["synthetic"], joints = evaluate_routes(gen, synthetic, seed, stream=stream)
-    generated += joints
-    results["foot_skating"] = float(np.mean([foot_skating_ratio(j) for j in generated]))
-    results["steering"] = caption_steering(gen, steering_seeds, seed=seed)
-    results["seconds"] = time.perf_counter() - t0
-    return results
-
-
-def _fmt_route(name: str, r: dict[str, Any]) -> str:
-    if not r.get("clips"):
-        return f"{name:<34}  (no clips)"
-    return (
-        f"{name:<34}{r['root_error_cm']:>9.1f}{r['location_error']:>10.3f}{r['trajectory_error']:>10.3f}"
-        f"{r['max_miss_cm']:>10.1f}{r['clips']:>7d}{r['waypoints']:>6d}"
-    )
-
-
-def _cell(d: dict[str, Any] | None, key: str) -> str:
-    if not d or key not in d:
-        return f"{'-':>22}"
-    return f"{d[key]['mean']:>14.2f} +- {d[key]['std']:<4.2f}"
-
-
-def format_results(results: dict[str, Any]) -> str:
-    """Plain-text tables of :func:`evaluate`'s results."""
-    lines = [f"model: {results['model']}{' (UNTRAINED)' if results['untrained'] else ''}", ""]
-    head = ("root cm", 9), ("loc err", 10), ("traj err", 10), ("max cm", 10), ("clips", 7), ("wps", 6)
-    lines.append(f"{'route following':<34}" + "".join(f"{h:>{w}}" for h, w in head))
-    for set_name in ("heldout", "synthetic"):
-        if set_name not in results:
-            continue
-        r = results[set_name]
-        lines.append(_fmt_route(f"{set_name}: final motion", r["final"]))
-        lines.append(_fmt_route(f"{set_name}: controller only", r["controller_only"]))
-        if "stream" in r:
-            lines.append(_fmt_route(f"{set_name}: streamed", r["stream"]))
-        for group, g in r["groups"].items():
-            lines.append(_fmt_route(f"  {group}: final", g["final"]))
-            lines.append(_fmt_route(f"  {group}: controller only", g["controller_only"]))
-    lines.append("")
-    skating = f"foot skating ratio: all generated {results['foot_skating']:.3f}"
-    if "real_foot_skating" in results:
-        skating += f", real {results.get('split', 'test')} takes {results['real_foot_skating']:.3f}"
-    for set_name in ("heldout", "synthetic"):
-        if "foot_skating" in results.get(set_name, {}):
-            skating += f"; {set_name} {results[set_name]['foot_skating']:.3f}"
-    if "stream_foot_skating" in results.get("synthetic", {}):
-        skating += f", synthetic streamed {results['synthetic']['stream_foot_skating']:.3f}"
-    for group, real in results.get("real_foot_skating_groups", {}).items():
-        generated = results["heldout"]["groups"][group]["foot_skating"]
-        skating += f"\n  held-out {group}: generated {generated:.3f}, the real takes {real:.3f}"
-    lines += [skating, ""]
-    ref, st = results.get("reference", {}), results["steering"]
-    lines.append(f"{'caption steering':<34}{'generated':>22}{'real takes':>22}")
-
-    def row(label: str, gen_key: str, ref_key: str, metric: str) -> None:
-        lines.append(f"{label:<34}{_cell(st.get(gen_key), metric)}{_cell(ref.get(ref_key), metric)}")
-
-    for pace in ("walk", "run"):
-        for route in ("untimed_route", "no_route"):
-            row(f"{pace} speed m/s ({route})", f"{pace}_{route}", pace, "speed_mps")
-            row(f"{pace} cadence steps/s ({route})", f"{pace}_{route}", pace, "cadence_steps_per_s")
-    row("run speed m/s (training phrasing)", "run_training_phrasing_untimed_route", "run", "speed_mps")
-    for side in ("wave_right", "wave_left"):
-        row(f"{side}: right-left wrist cm", side, side, "right_minus_left_cm")
-    for side in ("turn_left", "turn_right"):
-        row(f"{side}: heading change deg (no route)", side, side, "heading_change_deg")
-    for style in STYLE_CAPTIONS:
-        row(f"walk {style} speed m/s", f"walk_{style}", f"walk_{style}", "speed_mps")
-    lines.append(f"\n({results['seconds']:.0f} s)")
-    return "\n".join(lines)

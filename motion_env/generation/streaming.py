@@ -14,7 +14,7 @@ frames) at a time:
   look-ahead is rolled out again from the last decoded frame, so no emitted pose moves and the
   path does not jump.
 - Tokens are sampled one at a time with the GPT's KV cache; the VQ-VAE decodes the newest token
-  from its finite context (:meth:`motion_env.vqvae.VQVAE.decode_stream`); the recompose runs on a
+  from its finite context (:meth:`motion_env.models.vqvae.VQVAE.decode_stream`); the recompose runs on a
   short window of recent frames, of which only the new ones are emitted; the foot cleanup
   (:class:`~motion_env.generation.feet.FootPinner`) is causal, frame by frame, as for whole clips.
 - Snapping is causal too: the residual to each waypoint inside the look-ahead is spread linearly

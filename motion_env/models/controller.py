@@ -16,7 +16,7 @@ Two closed-form rules sit on top of the network:
   a direct approach whose turn is zero, so the character settles on the point instead of
   orbiting or spinning around it.
 
-Waypoints follow :mod:`motion_env.paths`: world ``x, z`` and a frame index (NaN = untimed).
+Waypoints follow :mod:`motion_env.motion.trajectory`: world ``x, z`` and a frame index (NaN = untimed).
 """
 
 from __future__ import annotations
@@ -134,7 +134,7 @@ def pack_waypoints(
 
     Args:
         waypoints: None (no route for anyone) or a list of B entries, each None or a (K, 2)/(K, 3)
-            array accepted by :func:`motion_env.paths.validate_waypoints`.
+            array accepted by :func:`motion_env.motion.trajectory.validate_waypoints`.
         batch: B.
 
     Returns:

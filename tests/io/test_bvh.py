@@ -1,4 +1,4 @@
-"""Tests for motion_env.bvh: parsing, kinematics, joint matching, bad inputs and real mocap."""
+"""Tests for motion_env.io (BVH): parsing, kinematics, joint matching, bad inputs and real mocap."""
 
 from __future__ import annotations
 
