@@ -1,4 +1,4 @@
-"""Training datasets in the HumanML3D layout: build one from BVH folders, read one back.
+"""Training datasets in the HumanML3D layout: the layout, and reading one back.
 
 Layout (the same as HumanML3D's, so a genuine HumanML3D directory reads the same way)::
 
@@ -9,59 +9,23 @@ Layout (the same as HumanML3D's, so a genuine HumanML3D directory reads the same
       train.txt val.txt test.txt  clip names, one per line (also all.txt, train_val.txt)
       Mean.npy Std.npy            (263,) normalisation statistics of the train split
 
-:func:`build_dataset` also writes ``index.csv`` (name, split, source, take, label, style,
-mirrored, frames, file) and ``summary.json``; HumanML3D readers ignore both.
-
-Build details:
-
-- Every ``.bvh`` / ``.bvh.gz`` under the source folders is imported with
-  :func:`motion_env.bvh.load_bvh` (20 fps, canonical skeleton). Captions come from the file
-  name (:mod:`motion_env.captions`: Bandai ``dataset-N_{content}_{style}_{take}``, CMU trial ids
-  looked up in a ``CMU-INDEX.md`` found in the file's folder or above it up to the source's
-  parent, else the file-name words); a ``<stem>.txt`` next to a BVH file, one caption per line,
-  replaces them.
-- Each take is also stored mirrored (``M<name>``, left and right swapped in the motion and in
-  the captions), like HumanML3D.
-- Splits are by take: a hash of the clip name decides train / val / test (85 / 7.5 / 7.5 %), the
-  same on every machine, and a mirror always goes where its take goes.
-- Mean / Std: over the frames of the train split (mirrors included); the standard deviation is
-  then averaged within each feature group (root rotation velocity, root linear velocity, root
-  height, joint positions, 6-D rotations, joint velocities, foot contacts) as in HumanML3D's
-  ``cal_mean_variance``. One difference: HumanML3D computed them over all of its clips, this
-  build over the train split only, so that validation and test stay unseen.
-- Takes shorter than ``min_seconds`` are skipped and files that fail to import are listed with
-  the reason; neither stops the build. The output directory must be empty or absent: the build
-  writes into a temporary sibling folder (``.<out>.partial-<pid>``) and renames it at the end;
-  an error or Ctrl-C removes it, so nothing half-written is left behind.
+Mirrored clips are named ``M<name>``. :func:`split_of` gives a take's split (a hash of its name,
+the same on every machine), :func:`read_split` / :func:`load_stats` read a dataset back, and
+:func:`read_captions` / :func:`write_captions` its caption files. :mod:`motion_env.data.build`
+builds one from BVH folders (``motion-env data build``).
 """
 
 from __future__ import annotations
 
-import csv
 import hashlib
-import json
-import multiprocessing
-import os
-import shutil
-import time
-import traceback
 from collections import defaultdict
 from collections.abc import Iterable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from motion_env.data.captions import (
-    DEFAULT_NUM_CAPTIONS,
-    ClipLabels,
-    caption_tokens,
-    captions_for,
-    file_stem,
-    labels_for_file,
-    parse_cmu_index,
-)
+from motion_env.data.captions import caption_tokens
 from motion_env.motion.skeleton import (
     FEATURE_DIM,
     FOOT_CONTACT,
@@ -74,7 +38,6 @@ from motion_env.motion.skeleton import (
     ROOT_Y,
     ROT6D,
 )
-from motion_env.text.mirror import mirror_caption
 
 SPLITS: tuple[str, ...] = ("train", "val", "test")
 SPLIT_FRACTIONS: tuple[float, float, float] = (0.85, 0.075, 0.075)
@@ -107,75 +70,8 @@ class DatasetClip:
         return int(self.features.shape[0])
 
 
-@dataclass
-class BuildSummary:
-    """What :func:`build_dataset` wrote (printed by ``motion-env data build``).
-
-    ``clips`` and ``frames`` count the written clips, mirrors included; ``takes`` the imported
-    takes. ``per_source[source]`` and ``per_label[source][label]`` hold ``{"clips", "frames"}``
-    (a mirrored clip counts under its mirrored label, e.g. walk-turn-right).
-    """
-
-    out: str
-    takes: int = 0
-    clips: int = 0
-    frames: int = 0
-    splits: dict[str, int] = field(default_factory=dict)
-    per_source: dict[str, dict[str, int]] = field(default_factory=dict)
-    per_label: dict[str, dict[str, dict[str, int]]] = field(default_factory=dict)
-    skipped: list[str] = field(default_factory=list)
-    failed: list[tuple[str, str]] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)
-    seconds: float = 0.0
-    min_seconds: float = 1.0
-
-    @property
-    def hours(self) -> float:
-        return self.frames / FPS / 3600.0
-
-    def to_dict(self) -> dict:
-        return {**asdict(self), "hours": self.hours}
-
-    def format(self, max_listed: int = 10) -> str:
-        """A human-readable report: totals, splits, per source, per label, skipped, failed."""
-
-        def hours(frames: int) -> str:
-            return f"{frames / FPS / 3600.0:.2f}"
-
-        minutes, secs = divmod(int(round(self.seconds)), 60)
-        lines = [
-            f"Built {self.out} in {minutes}m{secs:02d}s",
-            f"  {self.clips:,} clips ({self.takes:,} takes"
-            + (" + mirrors" if self.clips > self.takes else "")
-            + f"), {self.hours:.2f} h at {FPS} fps",
-            "  splits: " + ", ".join(f"{s} {self.splits.get(s, 0):,}" for s in SPLITS),
-            "",
-            f"  {'source':<28}{'clips':>8}{'hours':>8}",
-        ]
-        for source, c in sorted(self.per_source.items()):
-            lines.append(f"  {source:<28}{c['clips']:>8,}{hours(c['frames']):>8}")
-        lines += ["", f"  {'label (content)':<28}{'clips':>8}{'hours':>8}"]
-        for source, labels in sorted(self.per_label.items()):
-            for label, c in sorted(labels.items(), key=lambda kv: (-kv[1]["frames"], kv[0])):
-                lines.append(f"  {source + ': ' + label:<28.28}{c['clips']:>8,}{hours(c['frames']):>8}")
-        lines.append("")
-        lines.append(f"  skipped (shorter than {self.min_seconds:g} s): {len(self.skipped)}")
-        for name in self.skipped[:max_listed]:
-            lines.append(f"    {name}")
-        if len(self.skipped) > max_listed:
-            lines.append(f"    ... and {len(self.skipped) - max_listed} more (see summary.json)")
-        lines.append(f"  failed to import: {len(self.failed)}")
-        for name, reason in self.failed[:max_listed]:
-            lines.append(f"    {name}: {reason}")
-        if len(self.failed) > max_listed:
-            lines.append(f"    ... and {len(self.failed) - max_listed} more (see summary.json)")
-        for warning in self.warnings:
-            lines.append(f"  warning: {warning}")
-        return "\n".join(lines)
-
-
 # --------------------------------------------------------------------------------------------
-# Splits, captions files, statistics.
+# Splits and caption files.
 # --------------------------------------------------------------------------------------------
 
 
@@ -225,371 +121,8 @@ def read_captions(path: Path) -> list[tuple[str, float, float]]:
     return out
 
 
-class _RunningStats:
-    """Frame count, mean and sum of squared deviations, merged clip by clip (Chan et al.)."""
-
-    def __init__(self) -> None:
-        self.n = 0
-        self.mean = np.zeros(FEATURE_DIM)
-        self.m2 = np.zeros(FEATURE_DIM)
-
-    def add(self, n: int, mean: np.ndarray, m2: np.ndarray) -> None:
-        if n == 0:
-            return
-        total = self.n + n
-        delta = mean - self.mean
-        self.mean = self.mean + delta * (n / total)
-        self.m2 = self.m2 + m2 + delta**2 * (self.n * n / total)
-        self.n = total
-
-
-def _clip_stats(features: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
-    f = features.astype(np.float64)
-    mean = f.mean(axis=0)
-    return f.shape[0], mean, ((f - mean) ** 2).sum(axis=0)
-
-
-def grouped_std(std: np.ndarray) -> np.ndarray:
-    """HumanML3D's std post-processing: each feature group gets its mean standard deviation.
-
-    std: (263,). A group whose features never vary (std 0) gets 1, so that normalising by it
-    cannot divide by zero (HumanML3D has no such group; a tiny dataset can).
-    """
-    out = np.asarray(std, dtype=np.float64).copy()
-    for group in STD_GROUPS:
-        value = out[group].mean()
-        out[group] = value if value > 1e-12 else 1.0
-    return out
-
-
 # --------------------------------------------------------------------------------------------
-# Building.
-# --------------------------------------------------------------------------------------------
-
-
-@dataclass
-class _Job:
-    path: str
-    name: str
-    split: str
-    mirror: bool
-    min_frames: int
-    out: str
-
-
-def _process(job: _Job) -> dict:
-    """Import one file and write its clip (and mirror). Runs in a worker process."""
-    from motion_env import motion as mmath
-    from motion_env.io.bvh import load_bvh
-
-    result: dict = {"name": job.name, "status": "ok", "frames": 0, "stats": None}
-    try:
-        joints = load_bvh(job.path).joints
-        if joints.shape[0] < job.min_frames:
-            result.update(status="short", frames=int(joints.shape[0]))
-            return result
-        variants = [(job.name, joints)]
-        if job.mirror:
-            variants.append((MIRROR_PREFIX + job.name, mmath.mirror(joints)))
-        arrays = []
-        for name, j in variants:
-            # load_bvh has floored the clip robustly already; joints_to_features' own floor (the
-            # lowest joint of the whole clip) would let one bad frame lift everything.
-            features = mmath.joints_to_features(j, floor=False)
-            if not np.isfinite(features).all():
-                raise ValueError("features contain NaN or infinite values")
-            arrays.append((name, features, mmath.features_to_joints(features)))
-        out = Path(job.out)
-        stats = _RunningStats()
-        for name, features, new_joints in arrays:
-            np.save(out / "new_joint_vecs" / f"{name}.npy", features.astype(np.float32))
-            np.save(out / "new_joints" / f"{name}.npy", new_joints.astype(np.float32))
-            stats.add(*_clip_stats(features))
-        result["frames"] = int(arrays[0][1].shape[0])
-        if job.split == "train":
-            result["stats"] = (stats.n, stats.mean, stats.m2)
-    except Exception as exc:  # one bad file is reported, not fatal for the build
-        message = str(exc).removeprefix(f"{job.path}: ").removeprefix(f"{job.path} ")
-        result.update(status="failed", reason=f"{type(exc).__name__}: {message}".strip())
-        if not isinstance(exc, (ValueError, FileNotFoundError, OSError, EOFError)):
-            # An unexpected error type is a bug rather than a bad file: say where it happened.
-            where = traceback.extract_tb(exc.__traceback__)[-1]
-            result["reason"] += f" (at {Path(where.filename).name}:{where.lineno} in {where.name})"
-    return result
-
-
-def find_motion_files(sources: Sequence[str | Path]) -> list[tuple[Path, Path]]:
-    """All ``.bvh`` / ``.bvh.gz`` files under the source folders: ``[(source_root, file), ...]``.
-
-    A source may also be a single file. Each file is listed once, in sorted order.
-    """
-    found: list[tuple[Path, Path]] = []
-    seen: set[Path] = set()
-    for source in sources:
-        root = Path(source).expanduser()
-        if not root.exists():
-            raise FileNotFoundError(f"source folder {root} does not exist")
-        if root.is_file():
-            files = [root]
-            root = root.parent
-        else:
-            files = sorted(p for p in root.rglob("*") if p.name.lower().endswith((".bvh", ".bvh.gz")))
-        for f in files:
-            key = f.resolve()
-            if key not in seen and f.is_file():
-                seen.add(key)
-                found.append((root, f))
-    return found
-
-
-class _CmuIndexFinder:
-    """Finds the CMU-INDEX.md that applies to a file (its folder or above, up to the source's parent)."""
-
-    def __init__(self, explicit: Path | None = None) -> None:
-        self._explicit = parse_cmu_index(explicit.read_text(encoding="utf-8")) if explicit else None
-        self._by_dir: dict[Path, dict[str, str] | None] = {}
-
-    def __call__(self, root: Path, file: Path) -> dict[str, str] | None:
-        if self._explicit is not None:
-            return self._explicit
-        stop = root.resolve().parent
-        d = file.resolve().parent
-        while True:
-            if d not in self._by_dir:
-                index_file = d / CMU_INDEX_NAME
-                self._by_dir[d] = (
-                    parse_cmu_index(index_file.read_text(encoding="utf-8")) if index_file.is_file() else None
-                )
-            if self._by_dir[d] is not None or d == stop or d.parent == d:
-                return self._by_dir[d]
-            d = d.parent
-
-
-def _clip_name(labels: ClipLabels, root: Path, file: Path) -> str:
-    if labels.source in ("bandai", "cmu"):
-        base = labels.take if labels.source == "bandai" else f"cmu_{labels.take}"
-    else:
-        rel = file.relative_to(root).with_name(file_stem(file))
-        base = "_".join(rel.parts)
-    return "".join(c if c.isalnum() or c in "-_." else "_" for c in base)
-
-
-def _sidecar_captions(file: Path) -> list[str] | None:
-    txt = file.with_name(file_stem(file) + ".txt")
-    if not txt.is_file():
-        return None
-    lines = [
-        " ".join(line.replace("#", " ").split()) for line in txt.read_text(encoding="utf-8").splitlines()
-    ]
-    return [line for line in lines if line] or None
-
-
-def build_dataset(
-    sources: Sequence[str | Path],
-    out: str | Path,
-    mirror: bool = True,
-    workers: int = 2,
-    captions_per_clip: int = DEFAULT_NUM_CAPTIONS,
-    seed: int = 0,
-    min_seconds: float = 1.0,
-    cmu_index: str | Path | None = None,
-    progress: bool = True,
-) -> BuildSummary:
-    """Turn BVH folders into a HumanML3D-layout dataset directory (see the module docstring).
-
-    Args:
-        sources: folders searched recursively for ``.bvh`` / ``.bvh.gz`` files (or single files).
-        out: the dataset directory to create; must not exist or be empty.
-        mirror: also store every take mirrored (``M<name>``).
-        workers: processes importing files in parallel (1: in this process).
-        captions_per_clip: captions written per clip (label-derived captions only).
-        seed: seed of the caption wording.
-        min_seconds: takes shorter than this are skipped (counted in the summary).
-        cmu_index: a ``CMU-INDEX.md`` to use for every file, instead of looking for one.
-        progress: show a tqdm progress bar.
-    Returns:
-        the :class:`BuildSummary`, also written to ``out/summary.json``.
-    Raises:
-        FileExistsError: ``out`` exists and is not an empty directory.
-        FileNotFoundError: a source does not exist.
-        ValueError: no BVH file found, or none could be imported.
-    """
-    t0 = time.perf_counter()
-    out = Path(out).expanduser()
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise FileExistsError(f"output directory {out} exists and is not empty; nothing was written")
-    if workers < 1:
-        raise ValueError(f"workers must be >= 1, got {workers}")
-    if captions_per_clip < 1:
-        raise ValueError(f"captions_per_clip must be >= 1, got {captions_per_clip}")
-    files = find_motion_files(sources)
-    if not files:
-        raise ValueError(f"no .bvh or .bvh.gz files under {', '.join(str(s) for s in sources)}")
-
-    find_index = _CmuIndexFinder(Path(cmu_index) if cmu_index else None)
-    entries: list[dict] = []
-    taken: set[str] = set()
-    for root, file in files:
-        labels = labels_for_file(file, find_index(root, file))
-        name = base = _clip_name(labels, root, file)
-        k = 2
-        while name in taken or MIRROR_PREFIX + name in taken:
-            name, k = f"{base}-{k}", k + 1
-        taken.update((name, MIRROR_PREFIX + name))
-        captions = _sidecar_captions(file) or captions_for(labels, n=captions_per_clip, seed=seed)
-        entries.append(
-            {"file": file, "name": name, "labels": labels, "captions": captions, "split": split_of(name)}
-        )
-
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.name}.partial-{os.getpid()}")
-    if tmp.exists():
-        shutil.rmtree(tmp)
-    try:
-        for sub in ("new_joint_vecs", "new_joints", "texts"):
-            (tmp / sub).mkdir(parents=True)
-        summary, stats = _run_jobs(entries, tmp, mirror, workers, round(min_seconds * FPS), progress)
-        summary.min_seconds = min_seconds
-        _write_outputs(entries, summary, stats, tmp, mirror)
-        summary.out = str(out)
-        summary.seconds = time.perf_counter() - t0
-        (tmp / "summary.json").write_text(json.dumps(summary.to_dict(), indent=1) + "\n", encoding="utf-8")
-        if out.exists():
-            out.rmdir()  # checked empty above
-        tmp.rename(out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    return summary
-
-
-def _run_jobs(
-    entries: list[dict], tmp: Path, mirror: bool, workers: int, min_frames: int, progress: bool
-) -> tuple[BuildSummary, _RunningStats]:
-    """Import every file (in ``workers`` processes); the summary's skipped/failed lists and the
-    train split's feature statistics."""
-    from tqdm import tqdm
-
-    jobs = [
-        _Job(str(e["file"]), e["name"], e["split"], mirror, max(min_frames, 2), str(tmp)) for e in entries
-    ]
-    bar = tqdm(total=len(jobs), desc="data build", unit="file", disable=not progress, dynamic_ncols=True)
-    results: dict[str, dict] = {}
-    if workers == 1:
-        for job in jobs:
-            results[job.name] = _process(job)
-            bar.update()
-    else:
-        # forkserver: workers start from a clean interpreter, safe even when the caller has
-        # threads running (torch, tqdm), and cheaper than spawn.
-        methods = multiprocessing.get_all_start_methods()
-        ctx = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
-        try:
-            futures = [pool.submit(_process, job) for job in jobs]
-            for future in as_completed(futures):
-                r = future.result()
-                results[r["name"]] = r
-                bar.update()
-        finally:
-            # On Ctrl-C or an error, drop the queued files instead of importing them all first.
-            pool.shutdown(wait=True, cancel_futures=True)
-    bar.close()
-
-    summary = BuildSummary(out=str(tmp))
-    stats = _RunningStats()
-    for e in entries:
-        r = results[e["name"]]
-        e["result"] = r
-        if r["status"] == "short":
-            summary.skipped.append(f"{e['file'].name} ({r['frames'] / FPS:.2f} s)")
-        elif r["status"] == "failed":
-            summary.failed.append((str(e["file"]), r["reason"]))
-        elif r["stats"] is not None:
-            stats.add(*r["stats"])
-    return summary, stats
-
-
-def _write_outputs(
-    entries: list[dict], summary: BuildSummary, stats: _RunningStats, tmp: Path, mirror: bool
-) -> None:
-    """Texts, split files, index.csv, Mean/Std; fills the summary's counts."""
-    split_names: dict[str, list[str]] = {s: [] for s in SPLITS}
-    per_source: dict[str, dict[str, int]] = defaultdict(lambda: {"clips": 0, "frames": 0})
-    per_label: dict[str, dict[str, dict[str, int]]] = defaultdict(
-        lambda: defaultdict(lambda: {"clips": 0, "frames": 0})
-    )
-    rows = []
-    for e in entries:
-        r = e["result"]
-        if r["status"] != "ok":
-            continue
-        labels: ClipLabels = e["labels"]
-        summary.takes += 1
-        variants = [(e["name"], e["captions"], labels.label, False)]
-        if mirror:
-            variants.append(
-                (
-                    MIRROR_PREFIX + e["name"],
-                    [mirror_caption(c) for c in e["captions"]],
-                    mirror_caption(labels.label),
-                    True,
-                )
-            )
-        for name, captions, label, mirrored in variants:
-            write_captions(tmp / "texts" / f"{name}.txt", captions)
-            split_names[e["split"]].append(name)
-            for counter in (per_source[labels.source], per_label[labels.source][label]):
-                counter["clips"] += 1
-                counter["frames"] += r["frames"]
-            summary.clips += 1
-            summary.frames += r["frames"]
-            rows.append(
-                [
-                    name,
-                    e["split"],
-                    labels.source,
-                    labels.take,
-                    label,
-                    labels.style,
-                    int(mirrored),
-                    r["frames"],
-                ]
-                + [str(e["file"])]
-            )
-    if summary.clips == 0:
-        reasons = "".join(f"; {Path(n).name}: {why}" for n, why in summary.failed[:3])
-        raise ValueError(
-            f"none of the {len(entries)} files could be used "
-            f"({len(summary.failed)} failed, {len(summary.skipped)} too short){reasons}"
-        )
-    for split, names in split_names.items():
-        (tmp / f"{split}.txt").write_text("".join(f"{n}\n" for n in sorted(names)), encoding="utf-8")
-    all_names = sorted(n for names in split_names.values() for n in names)
-    (tmp / "all.txt").write_text("".join(f"{n}\n" for n in all_names), encoding="utf-8")
-    train_val = sorted(split_names["train"] + split_names["val"])
-    (tmp / "train_val.txt").write_text("".join(f"{n}\n" for n in train_val), encoding="utf-8")
-    with open(tmp / "index.csv", "w", newline="", encoding="utf-8") as f:
-        writer = csv.writer(f)
-        writer.writerow(["name", "split", "source", "take", "label", "style", "mirrored", "frames", "file"])
-        writer.writerows(rows)
-
-    if stats.n == 0:
-        # A tiny dataset can hash every take into val/test: normalise with all clips instead.
-        summary.warnings.append("the train split is empty; Mean/Std are computed over all clips")
-        for name in all_names:
-            stats.add(*_clip_stats(np.load(tmp / "new_joint_vecs" / f"{name}.npy")))
-    mean = stats.mean
-    std = grouped_std(np.sqrt(stats.m2 / stats.n))
-    np.save(tmp / "Mean.npy", mean.astype(np.float32))
-    np.save(tmp / "Std.npy", std.astype(np.float32))
-    summary.splits = {s: len(split_names[s]) for s in SPLITS}
-    summary.per_source = dict(per_source)
-    summary.per_label = {s: dict(v) for s, v in per_label.items()}
-
-
-# --------------------------------------------------------------------------------------------
-# Reading.
+# Whole splits and normalisation statistics.
 # --------------------------------------------------------------------------------------------
 
 

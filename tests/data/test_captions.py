@@ -1,8 +1,10 @@
-"""Captions from labels: variety, determinism, left/right mirroring, CMU descriptions, tokens."""
+"""Captions from labels (motion_env.data.captions): variety, determinism, left/right mirroring, CMU
+descriptions, file names, tokens, and the phrase tables they are drawn from."""
 
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -20,9 +22,6 @@ from motion_env.data.captions import (
     parse_cmu_index,
 )
 from motion_env.text.mirror import mirror_caption
-
-SHARED = Path(__file__).resolve().parents[3] / "shared" / "data"
-CMU_INDEX = SHARED / "cmu" / "CMU-INDEX.md"
 
 
 def _words(text: str) -> set[str]:
@@ -111,10 +110,8 @@ def test_parse_cmu_index_format() -> None:
     assert parse_cmu_index(text) == {"02_01": "walk", "02_03": "run/jog", "13_29": "jumping jacks"}
 
 
-def test_every_real_cmu_description_gives_five_captions() -> None:
-    if not CMU_INDEX.is_file():
-        pytest.skip(f"real CMU index not found at {CMU_INDEX}")
-    index = parse_cmu_index(CMU_INDEX.read_text(encoding="utf-8"))
+def test_every_real_cmu_description_gives_five_captions(require_data: Callable[[str], Path]) -> None:
+    index = parse_cmu_index(require_data("cmu/CMU-INDEX.md").read_text(encoding="utf-8"))
     assert len(index) > 2000 and index["02_01"] == "walk"
     for trial, description in index.items():
         caps = captions_for_description(description, n=5, seed=0)
@@ -162,3 +159,15 @@ def test_caption_tokens_follow_humanml3d() -> None:
         for token in caption_tokens(caption).split():
             word, pos = token.split("/")
             assert word.isalpha() and pos.isupper(), token
+
+
+def test_phrase_tables_are_well_formed() -> None:
+    # The JSON tables of motion_env/data/captions/phrases: every content phrase starts with a verb
+    # to inflect, every style can be said, and another name for a style is that very style.
+    for content, phrases in BANDAI_CONTENTS.items():
+        assert phrases and all(p.startswith("^") and p == p.strip() for p in phrases), content
+    for label, style in BANDAI_STYLES.items():
+        assert style.adverbs and style.phrases and (style.adjectives or style.neutral), label
+    for alias, label in [("old", "elderly"), ("tired", "exhausted"), ("children", "childish")]:
+        assert BANDAI_STYLES[alias] is BANDAI_STYLES[label]
+    assert {"walk", "run", "wave-right-hand", "dance-short"} <= set(BANDAI_CONTENTS)
