@@ -36,7 +36,7 @@ def _run_show(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from motion_env.io.load import load_motion
-    from motion_env.render.stick import VIDEO_SUFFIXES, plot_path, render_video
+    from motion_env.render import VIDEO_SUFFIXES, plot_path, render_video
 
     src = Path(args.file)
     if args.out is None:
@@ -90,7 +90,7 @@ def _add_data(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_data_build(args: argparse.Namespace) -> int:
-    from motion_env.data.dataset import build_dataset
+    from motion_env.data.build import build_dataset
 
     try:
         summary = build_dataset(
@@ -110,77 +110,97 @@ def _run_data_build(args: argparse.Namespace) -> int:
     return 0
 
 
+# `train <model>`: each model's trainer module, its config dataclass, and what it trains.
+_TRAINERS = {
+    "vqvae": ("motion_env.training.vqvae", "VQVAETrainConfig", "the motion VQ-VAE (train it first)"),
+    "gpt": ("motion_env.training.gpt", "GPTTrainConfig", "the token GPT, on the tokens of a trained VQ-VAE"),
+    "controller": (
+        "motion_env.training.controller",
+        "ControllerTrainConfig",
+        "the path controller (needs no other model)",
+    ),
+}
+
+
+def _train_config_class(model: str) -> type:
+    import importlib
+
+    module, name, _ = _TRAINERS[model]
+    return getattr(importlib.import_module(module), name)
+
+
+class _TrainParser(argparse.ArgumentParser):
+    """The parser of `train <model>`: its options are made from the trainer's config dataclass (one
+    per field) when it is first used, so only `motion-env train` imports the trainers."""
+
+    def __init__(self, *args, model: str, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._model, self._config_added = model, False
+
+    def _add_config(self) -> None:
+        if not self._config_added:
+            from motion_env.args import add_dataclass_arguments
+
+            self._config_added = True
+            add_dataclass_arguments(self, _train_config_class(self._model))
+
+    def parse_known_args(self, args=None, namespace=None):
+        self._add_config()
+        return super().parse_known_args(args, namespace)
+
+    def format_usage(self) -> str:
+        self._add_config()
+        return super().format_usage()
+
+    def format_help(self) -> str:
+        self._add_config()
+        return super().format_help()
+
+
 def _add_train(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
-        "train", help="train one model of the generator (VQ-VAE, then GPT; controller any time)"
+        "train",
+        help="train one model of the generator (VQ-VAE, then GPT; controller any time)",
+        description="Train one model of the generator. Each model's options are its trainer's settings "
+        "(motion-env train MODEL --help lists them with their defaults).",
     )
-    p.add_argument("model", choices=("vqvae", "gpt", "controller"), help="which model to train")
-    p.add_argument("--data", required=True, help="HumanML3D-layout dataset directory (motion-env data build)")
-    p.add_argument("--out", required=True, help="checkpoint to write (resumed from when it exists)")
-    p.add_argument(
-        "--vqvae", default=None, help="gpt only: the trained VQ-VAE checkpoint that tokenises the data"
-    )
-    p.add_argument(
-        "--steps", type=int, default=None, help="total optimisation steps (default: the trainer's)"
-    )
-    p.add_argument("--batch-size", type=int, default=None, help="samples per step (default: the trainer's)")
-    p.add_argument("--lr", type=float, default=None, help="peak learning rate (default: the trainer's)")
-    p.add_argument("--window", type=int, default=None, help="vqvae/controller: frames per training window")
-    p.add_argument(
-        "--encoder", default=None, help="gpt/controller: text encoder name (default: minilm+sides)"
-    )
-    p.add_argument(
-        "--text-noise", type=float, default=None, help="gpt/controller: caption embedding noise (default 0.3)"
-    )
-    p.add_argument("--device", default="cpu", help="torch device: cpu, cuda, cuda:1, ...")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--max-minutes", type=float, default=None, help="stop (with a checkpoint) after this long")
-    p.add_argument("--no-resume", action="store_true", help="start afresh even if --out exists")
-    p.set_defaults(run=_run_train)
+    models = p.add_subparsers(dest="model", required=True, metavar="MODEL", parser_class=_TrainParser)
+    for model, (_, _, what) in _TRAINERS.items():
+        m = models.add_parser(model, help=what, description=f"Train {what}.", model=model)
+        m.add_argument(
+            "--data", required=True, help="HumanML3D-layout dataset directory (motion-env data build)"
+        )
+        m.add_argument("--out", required=True, help="checkpoint to write (resumed from when it exists)")
+        if model == "gpt":
+            m.add_argument(
+                "--vqvae", default=None, help="the trained VQ-VAE checkpoint that tokenises the data"
+            )
+        m.set_defaults(run=_run_train)
 
 
 def _run_train(args: argparse.Namespace) -> int:
+    import dataclasses
     import json
     from pathlib import Path
 
     if not Path(args.data).is_dir():
         raise FileNotFoundError(f"no dataset directory at {args.data}")
-    common = {
-        "device": args.device,
-        "resume": not args.no_resume,
-        "seed": args.seed,
-        "max_minutes": args.max_minutes,
-    }
-    optional = {"steps": args.steps, "batch_size": args.batch_size, "lr": args.lr}
-    if args.model != "gpt":
-        optional["window"] = args.window
-    elif args.window is not None:
-        raise ValueError("--window applies to vqvae and controller, not gpt")
-    if args.model != "vqvae":
-        optional["text_noise"] = args.text_noise
-    elif args.text_noise is not None or args.encoder is not None:
-        raise ValueError("--encoder and --text-noise apply to gpt and controller, not vqvae")
-    common.update({k: v for k, v in optional.items() if v is not None})
+    config_class = _train_config_class(args.model)
+    config = config_class(**{f.name: getattr(args, f.name) for f in dataclasses.fields(config_class)})
     if args.model == "vqvae":
-        from motion_env.training.body import train_vqvae
+        from motion_env.training.vqvae import train_vqvae
 
-        metrics = train_vqvae(args.data, args.out, **common)
+        metrics = train_vqvae(args.data, args.out, config)
     elif args.model == "gpt":
-        from motion_env.training.body import train_gpt
+        from motion_env.training.gpt import train_gpt
 
         if args.vqvae is None:
             raise ValueError("training the gpt needs --vqvae CKPT (the trained VQ-VAE)")
-        if args.encoder is not None:
-            from motion_env.text.encoders import load_text_encoder
-
-            common["text_encoder"] = load_text_encoder(args.encoder, device=args.device)
-        metrics = train_gpt(args.data, args.vqvae, args.out, **common)
+        metrics = train_gpt(args.data, args.vqvae, args.out, config)
     else:
         from motion_env.training.controller import train_controller
 
-        if args.encoder is not None:
-            common["encoder"] = args.encoder
-        metrics = train_controller(args.data, args.out, **common)
+        metrics = train_controller(args.data, args.out, config)
     print(json.dumps({"model": args.model, "checkpoint": str(args.out), **metrics}, indent=2))
     return 0
 
@@ -306,15 +326,19 @@ def _run_replay(args: argparse.Namespace) -> int:
     from motion_env.io.load import load_motion
     from motion_env.replay import evaluate_detailed, format_report
 
-    motion = load_motion(args.file)
     if not (args.mass > 0):
         raise ValueError(f"--mass must be a positive number of kg, got {args.mass}")
+    if args.video:
+        from motion_env.render.video import check_video_path
+
+        check_video_path(args.video)  # a typo fails before the replay, not after it
+    motion = load_motion(args.file)
     m, result = evaluate_detailed(motion, args.mass, args.thresholds, track=args.track)
     if args.video:
-        from motion_env.replay.video import render_video
+        from motion_env.render.humanoid import render_humanoid_video
 
         try:
-            result["video"] = str(render_video(m, result, args.video))
+            result["video"] = str(render_humanoid_video(m, result, args.video))
         except RuntimeError as exc:  # no offscreen OpenGL: say so in one line
             print(f"motion-env replay: error: {exc}", file=sys.stderr)
             return 2

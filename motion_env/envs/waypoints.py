@@ -249,12 +249,12 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         obstacles = circles(self.obstacles) if len(self.obstacles) else None
         if self.render_style == "humanoid":
             if self._view is None:
-                from motion_env.envs.humanoid_view import HumanoidView
+                from motion_env.render.humanoid import HumanoidView
 
                 self._view = HumanoidView(*self.render_size)
             trail = np.array(batch.trails[0])
             return self._view.draw(batch.joints[0], trail, batch.command_xz[0], batch.routes[0], obstacles)
-        from motion_env.render.stick import render_frame
+        from motion_env.render import render_frame
 
         return render_frame(
             batch.joints[0],

@@ -4,9 +4,18 @@
 >>> result = evaluate(motion)          # a motion_env.Motion
 >>> result["plausible"], result["failed"]
 
-See :mod:`motion_env.replay.evaluate` for the checks, :mod:`.humanoid` for the model,
-:mod:`.fit` for joint positions -> qpos, :mod:`.tracking` for PD tracking and :mod:`.video`
-for rendering.
+What is where:
+
+- :mod:`.checks`: the nine checks, :func:`evaluate` / :func:`evaluate_detailed`, the report and
+  the thresholds (``model/thresholds.json``);
+- :mod:`.humanoid`: the body generated from the canonical skeleton (:func:`humanoid_xml`);
+- :mod:`.scene`: the compiled model (``model/scene.xml`` + the body, :func:`load_model`) and
+  the ids into it;
+- ``model/``: the Menagerie-style model folder (scene, default body, thresholds, README);
+- :mod:`.fit`: joint positions -> qpos; :mod:`.kinematic`: per-frame measurements;
+  :mod:`.tracking`: PD tracking; :mod:`.corruptions`: physically wrong versions of a motion.
+
+Videos of a replay are drawn by :func:`motion_env.render.humanoid.render_humanoid_video`.
 """
 
 from motion_env.replay.checks import (
@@ -18,8 +27,9 @@ from motion_env.replay.checks import (
     report,
     signals,
 )
-from motion_env.replay.humanoid import humanoid_xml, load_model, scene_xml
+from motion_env.replay.humanoid import humanoid_xml
 from motion_env.replay.kinematic import Measurements, measure
+from motion_env.replay.scene import load_model, scene_xml
 
 __all__ = [
     "CHECKS",

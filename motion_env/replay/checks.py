@@ -2,7 +2,7 @@
 
 :func:`evaluate` replays a motion on the humanoid (:func:`motion_env.replay.kinematic.measure`)
 and runs nine checks, each a per-frame signal compared with a threshold calibrated on real
-motion capture (``scripts/calibrate_replay.py`` writes ``motion_env/assets/replay_thresholds.json``):
+motion capture (``scripts/calibrate_replay.py`` writes ``motion_env/replay/model/thresholds.json``):
 
 ====================  =========================================================================
 penetration           depth of the lowest body point below the floor (m)
@@ -25,7 +25,6 @@ added to the report but does not decide it.
 from __future__ import annotations
 
 import json
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +35,7 @@ from motion_env.motion.skeleton import FPS, JOINT_NAMES
 from motion_env.motion.types import Motion
 from motion_env.replay.humanoid import BALL_JOINTS, DEFAULT_MASS
 from motion_env.replay.kinematic import CONTACT_HEIGHT, Measurements, measure
+from motion_env.replay.scene import MODEL_DIR
 
 GRAVITY = 9.81
 CHECKS: tuple[str, ...] = (
@@ -101,7 +101,7 @@ def _limit_words(joint: str, axis: int, upper: bool) -> str:
 
 def thresholds_path() -> Path:
     """The shipped calibration file."""
-    return Path(str(resources.files("motion_env").joinpath("assets/replay_thresholds.json")))
+    return MODEL_DIR / "thresholds.json"
 
 
 def load_thresholds(path: str | Path | None = None) -> dict[str, float]:

@@ -1,13 +1,16 @@
-"""A MuJoCo humanoid generated from the canonical skeleton.
+"""The replay humanoid's body, generated from the canonical skeleton: :func:`humanoid_xml`.
 
-The body is built from :mod:`motion_env.skeleton`: one body per non-leaf joint, placed at that
-joint in a relaxed standing rest pose, with a 3-DoF ball joint (a free joint at the pelvis),
+The body is built from :mod:`motion_env.motion.skeleton`: one body per non-leaf joint, placed at
+that joint in a relaxed standing rest pose, with a 3-DoF ball joint (a free joint at the pelvis),
 capsule limbs sized from :data:`skeleton.BONE_LENGTHS`, and segment masses, centres of mass and
-inertias from standard body-segment proportions. As in MuJoCo Menagerie, the body XML
-(:func:`humanoid_xml`) holds the body only; the scene (floor, light, camera) is the static
-``motion_env/assets/replay_scene.xml``, which includes it as ``humanoid.xml``.
+inertias from standard body-segment proportions. As in MuJoCo Menagerie, the body XML holds the
+body only; the scene (floor, light, camera) is ``motion_env/replay/model/scene.xml``, which
+includes it as ``humanoid.xml`` (see ``motion_env/replay/model/README.md``). The body is made at
+load time (:func:`motion_env.replay.scene.load_model`) because the mass and the rest pose are
+parameters; ``model/humanoid.xml`` is the default body (70 kg, :data:`REST_DIRECTIONS`) written
+out by :func:`motion_env.replay.scene.write_body_xml`.
 
-Frames: motions are Y up and face +Z (docs/PRODUCT.md); MuJoCo models are Z up and humanoids
+Frames: motions are Y up and face +Z (docs/conventions.md); MuJoCo models are Z up and humanoids
 face +X. :func:`to_mujoco` maps a motion point (x, y, z) to (z, x, y), a proper rotation, so the
 character's forward is MuJoCo +X, its left +Y and up +Z. Every body frame is aligned with the
 world in the rest pose, so a ball joint's quaternion is the body's rotation relative to its
@@ -25,11 +28,8 @@ Sources:
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
-from importlib import resources
 
-import mujoco
 import numpy as np
 
 from motion_env.motion.skeleton import BONE_LENGTHS, JOINT_INDEX, JOINT_NAMES, NUM_JOINTS, PARENTS
@@ -193,7 +193,7 @@ def rest_positions(rest_directions: np.ndarray | None = None) -> np.ndarray:
     rest_directions: (22, 3) unit bone directions (default :data:`REST_DIRECTIONS`); bones have
     the canonical :data:`skeleton.BONE_LENGTHS`.
     """
-    dirs = REST_DIRECTIONS if rest_directions is None else _check_directions(rest_directions)
+    dirs = REST_DIRECTIONS if rest_directions is None else check_directions(rest_directions)
     pos = np.zeros((NUM_JOINTS, 3))
     for j in range(1, NUM_JOINTS):
         pos[j] = pos[PARENTS[j]] + dirs[j] * BONE_LENGTHS[j]
@@ -202,7 +202,8 @@ def rest_positions(rest_directions: np.ndarray | None = None) -> np.ndarray:
     return pos
 
 
-def _check_directions(rest_directions: np.ndarray) -> np.ndarray:
+def check_directions(rest_directions: np.ndarray) -> np.ndarray:
+    """`rest_directions` as a (22, 3) float array of unit vectors, or ValueError."""
     dirs = np.asarray(rest_directions, dtype=np.float64)
     if dirs.shape != (NUM_JOINTS, 3) or not np.isfinite(dirs).all():
         raise ValueError(f"rest_directions must be a finite ({NUM_JOINTS}, 3) array, got shape {dirs.shape}")
@@ -459,63 +460,3 @@ def humanoid_xml(mass: float = DEFAULT_MASS, rest_directions: np.ndarray | None 
   </contact>
 </mujoco>
 """
-
-
-def scene_xml() -> str:
-    """The static scene (floor, light, cameras) that includes ``humanoid.xml``."""
-    return resources.files("motion_env").joinpath("assets/replay_scene.xml").read_text()
-
-
-@functools.lru_cache(maxsize=16)
-def _compiled(mass: float, rest_key: bytes | None) -> mujoco.MjModel:
-    dirs = None if rest_key is None else np.frombuffer(rest_key).reshape(NUM_JOINTS, 3)
-    body = humanoid_xml(mass, dirs)
-    return mujoco.MjModel.from_xml_string(scene_xml(), assets={"humanoid.xml": body.encode()})
-
-
-def load_model(mass: float = DEFAULT_MASS, rest_directions: np.ndarray | None = None) -> mujoco.MjModel:
-    """The compiled scene + humanoid (a fresh copy each call, safe to modify).
-
-    Arguments as :func:`humanoid_xml`.
-    """
-    key = None if rest_directions is None else _check_directions(rest_directions).tobytes()
-    return _compiled(float(mass), key).__copy__()
-
-
-@dataclass(frozen=True)
-class ModelIndex:
-    """Addresses into a compiled humanoid model, in canonical joint order where it applies."""
-
-    joint_sites: np.ndarray  # (22,) site id of each canonical joint
-    joint_bodies: np.ndarray  # (22,) body id carrying each canonical joint
-    ball_qpos: np.ndarray  # (len(BALL_JOINTS),) qpos address of each ball joint (4 values)
-    ball_dof: np.ndarray  # (len(BALL_JOINTS),) dof address of each ball joint (3 values)
-    floor_geom: int
-    body_geoms: np.ndarray  # ids of the humanoid's geoms
-    foot_geoms: dict[str, np.ndarray]  # "left"/"right" -> sole geom ids
-
-
-def model_index(model: mujoco.MjModel) -> ModelIndex:
-    """Look up the ids of the canonical joints, ball joints and geoms in `model`."""
-
-    def oid(kind: mujoco.mjtObj, name: str) -> int:
-        i = mujoco.mj_name2id(model, kind, name)
-        if i < 0:
-            raise ValueError(f"the MuJoCo model has no {kind.name[5:].lower()} named {name!r}")
-        return i
-
-    site = mujoco.mjtObj.mjOBJ_SITE
-    body = mujoco.mjtObj.mjOBJ_BODY
-    joint = mujoco.mjtObj.mjOBJ_JOINT
-    geom = mujoco.mjtObj.mjOBJ_GEOM
-    floor = oid(geom, "floor")
-    ball = [oid(joint, JOINT_NAMES[j]) for j in BALL_JOINTS]
-    return ModelIndex(
-        joint_sites=np.array([oid(site, n) for n in JOINT_NAMES]),
-        joint_bodies=np.array([oid(body, JOINT_TO_BODY[n]) for n in JOINT_NAMES]),
-        ball_qpos=np.array([model.jnt_qposadr[i] for i in ball]),
-        ball_dof=np.array([model.jnt_dofadr[i] for i in ball]),
-        floor_geom=floor,
-        body_geoms=np.array([g for g in range(model.ngeom) if model.geom_bodyid[g] > 0]),
-        foot_geoms={s: np.array([oid(geom, f"{s}_sole{k}") for k in range(2)]) for s in ("left", "right")},
-    )

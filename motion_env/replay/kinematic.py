@@ -3,7 +3,7 @@
 :func:`measure` runs ``mj_forward`` on every frame (joint positions, geoms, contacts between
 limbs, centre of mass) and ``mj_inverse`` with finite-difference velocities and accelerations
 (the wrench the root would need), and returns per-frame arrays. The checks that turn them into a
-verdict live in :mod:`motion_env.replay.evaluate`.
+verdict live in :mod:`motion_env.replay.checks`.
 """
 
 from __future__ import annotations
@@ -17,14 +17,8 @@ from scipy.optimize import nnls
 from motion_env.motion.rotations import quat_to_axis_angle
 from motion_env.motion.types import Motion
 from motion_env.replay.fit import clip_rest_directions, fit_qpos
-from motion_env.replay.humanoid import (
-    DEFAULT_MASS,
-    ModelIndex,
-    joint_ranges_rad,
-    load_model,
-    model_index,
-    to_mujoco,
-)
+from motion_env.replay.humanoid import DEFAULT_MASS, joint_ranges_rad, to_mujoco
+from motion_env.replay.scene import ModelIndex, load_model, model_index
 
 CONTACT_HEIGHT = 0.05
 """A body point this close to the floor (m) can be pushed by it: the floor of a mocap take and

@@ -6,29 +6,38 @@ features recomputed from its *predicted* position (so it learns to correct its o
 waypoints are the clip's own future root positions: timed at random spacing (1-3 s), untimed,
 mixed, dense, a single far one, or none at all (then it must follow the caption's natural motion).
 Losses: position (weighted up at waypoint frames), local velocity, turn rate (zero-turn target on
-still frames), heading, and turn smoothness.
+still frames), heading, turn smoothness and acceleration.
 
 Batches are drawn from ``numpy.random.default_rng([seed, step])``, so a resumed run sees exactly
-the batches an uninterrupted one would.
+the batches an uninterrupted one would. The loop, the learning-rate schedule and the checkpoints
+are :mod:`motion_env.training.loop`'s.
 """
 
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
-from tqdm import tqdm
+from tqdm.auto import tqdm
 
+from motion_env.data.dataset import read_split
+from motion_env.models.checkpoint import (
+    check_text_encoder,
+    config_from_dict,
+    load_checkpoint,
+    text_encoder_record,
+)
 from motion_env.models.controller import ControllerConfig, PathController, to_heading_frame_torch
 from motion_env.motion.skeleton import FPS
 from motion_env.motion.trajectory import root_path_from_joints, waypoint_errors
-from motion_env.text.encoders import DEFAULT_TEXT_ENCODER, jitter_embeddings
+from motion_env.text.encoders import DEFAULT_TEXT_ENCODER, TextEncoder, jitter_embeddings, load_text_encoder
+from motion_env.training.config import TrainConfig, check_above, check_at_least
+from motion_env.training.loop import restore, resume_checkpoint, run_loop, save_training_checkpoint
 
 CHECKPOINT_KIND = "controller"
 # A frame is "still" below this root speed (m/s): its turn target is zero (no spin on the spot).
@@ -248,9 +257,9 @@ def evaluate_controller(
 ) -> dict[str, float]:
     """Root error of closed-loop rollouts on held-out windows (waypoints from the clips' own future).
 
-    Root error (PRODUCT.md): XZ distance between the pelvis at a timed waypoint's frame and the
+    Root error (docs/metrics.md): XZ distance between the pelvis at a timed waypoint's frame and the
     waypoint, in cm; untimed waypoints are measured at the closest approach. Reported raw and,
-    with `snap`, after :func:`motion_env.recompose.snap_to_waypoints`. Only waypoints inside the
+    with `snap`, after :func:`motion_env.generation.recompose.snap_to_waypoints`. Only waypoints inside the
     window count.
     """
     from motion_env.generation.recompose import snap_to_waypoints
@@ -294,175 +303,146 @@ def evaluate_controller(
     return out
 
 
-@dataclass
-class TrainSettings:
-    """What a training run was asked to do (stored in the checkpoint)."""
+@dataclass(kw_only=True)
+class ControllerTrainConfig(TrainConfig):
+    """How to train the path controller (stored in its checkpoint under ``"settings"``)."""
 
-    steps: int = 2000
-    batch_size: int = 64
-    lr: float = 1e-3
-    window: int = 100
-    seed: int = 0
-    warmup: int = 50
-    grad_clip: float = 1.0
-    text_noise: float = 0.3
+    steps: int = 2000  # total optimisation steps (those of a resumed run included)
+    batch_size: int = 64  # windows per step
+    lr: float = 1e-3  # peak AdamW learning rate (linear warm-up, cosine decay to a tenth)
+    window: int = 100  # frames per training window
+    warmup: int = 50  # warm-up steps of the learning rate
+    grad_clip: float = 1.0  # gradient norm clip
+    text_noise: float = 0.3  # expected norm of the noise added to caption embeddings (0: off)
+    encoder: str = DEFAULT_TEXT_ENCODER  # text encoder name (motion_env.text.load_text_encoder)
+    eval_windows: int = 256  # val windows per evaluation
+    log_every: int = 25  # steps between loss lines in the log (running averages)
+    save_every: int = 50  # steps between checkpoints (one is also written at the end)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        check_at_least(self, 1, "steps", "batch_size", "eval_windows")
+        check_at_least(self, 2, "window")
+        check_at_least(self, 0, "warmup", "text_noise")
+        check_above(self, 0, "lr", "grad_clip")
 
 
-def _lr_at(step: int, s: TrainSettings) -> float:
-    if step < s.warmup:
-        return s.lr * (step + 1) / s.warmup
-    progress = (step - s.warmup) / max(1, s.steps - s.warmup)
-    return s.lr * (0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * min(1.0, progress))))
+# The name of the controller's settings before each trainer had its TrainConfig
+# (tests/models/test_controller.py still uses it).
+TrainSettings = ControllerTrainConfig
 
 
 def fit(
     model: PathController,
     data: PathData,
-    settings: TrainSettings,
+    settings: ControllerTrainConfig,
     optimizer: torch.optim.Optimizer | None = None,
     start_step: int = 0,
     on_step: Callable[[int, dict[str, float]], bool] | None = None,
     progress: bool = True,
+    *,
+    save: Callable[[int, dict[str, float]], None] | None = None,
+    evaluate: Callable[[], dict[str, float]] | None = None,
 ) -> tuple[torch.optim.Optimizer, int]:
     """Train `model` from `start_step` to `settings.steps`.
 
     `on_step(step, parts)` runs after each step (step counts those done) and may return True to
-    stop early. Returns (optimizer, steps done).
+    stop early; `save` and `evaluate` are :func:`motion_env.training.loop.run_loop`'s (None: no
+    checkpoints, no periodic validation). Returns (optimizer, steps done).
     """
     if optimizer is None:
         optimizer = torch.optim.AdamW(model.parameters(), lr=settings.lr, weight_decay=1e-4)
     dev = model.device
-    bar = tqdm(range(start_step, settings.steps), initial=start_step, total=settings.steps,
-               desc="controller", disable=not progress, mininterval=10.0)  # fmt: skip
-    done = start_step
-    for step in bar:
+
+    def train_step(step: int) -> dict[str, float]:
         model.train()
         rng = np.random.default_rng([settings.seed, step])
         gen = torch.Generator(device=dev).manual_seed(settings.seed * 1_000_003 + step)
         batch = sample_batch(data, rng, settings.batch_size, settings.window, settings.text_noise)
-        for group in optimizer.param_groups:
-            group["lr"] = _lr_at(step, settings)
         loss, parts = controller_loss(model, batch, gen)
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         torch.nn.utils.clip_grad_norm_(model.parameters(), settings.grad_clip)
         optimizer.step()
         parts["loss"] = loss.item()
-        bar.set_postfix(loss=f"{parts['loss']:.3f}", wp=f"{parts['wp']:.3f}", refresh=False)
-        done = step + 1
-        if on_step is not None and on_step(done, parts):
-            break
-    bar.close()
-    return optimizer, done
+        return parts
+
+    result = run_loop(
+        CHECKPOINT_KIND, settings, optimizer, train_step, warmup=settings.warmup, start=start_step,
+        save=save, evaluate=evaluate, postfix={"loss": ".3f", "wp": ".3f"}, smoothing=0.95,
+        on_step=on_step, progress=progress,
+    )  # fmt: skip
+    return optimizer, result.step
 
 
 def load_controller(path: str | Path, device: str | torch.device = "cpu") -> tuple[PathController, dict]:
     """A trained controller from its checkpoint: (model in eval mode, the checkpoint dict)."""
-    from motion_env.models.checkpoint import load_checkpoint
-
     return load_checkpoint(path, CHECKPOINT_KIND, ControllerConfig, PathController, device)
 
 
 def train_controller(
     data_dir: str | Path,
     out_path: str | Path,
-    steps: int = 2000,
-    batch_size: int = 64,
-    lr: float = 1e-3,
-    device: str = "cpu",
-    resume: bool = True,
-    window: int = 100,
-    seed: int = 0,
-    text_noise: float = 0.3,
-    config: ControllerConfig | None = None,
-    encoder: str = DEFAULT_TEXT_ENCODER,
-    checkpoint_every: int = 50,
-    eval_every: int = 0,
-    eval_windows: int = 256,
-    max_minutes: float | None = None,
-    progress: bool = True,
+    config: ControllerTrainConfig | None = None,
+    model_config: ControllerConfig | None = None,
+    text_encoder: TextEncoder | None = None,
 ) -> dict[str, float]:
     """Train the path controller on a HumanML3D-layout dataset and checkpoint it.
 
     Args:
         data_dir: dataset root (``train.txt``, ``val.txt``, ``new_joints/``, ``texts/``).
-        out_path: checkpoint file; written atomically every `checkpoint_every` steps and at the end.
-        steps, batch_size, lr, window, seed: training settings (window in frames).
-        text_noise: expected norm of the noise added to caption embeddings
-            (:func:`motion_env.text.jitter_embeddings`; 0 turns it off).
-        device: torch device.
-        resume: continue from `out_path` when it exists (same settings, same batches).
-        config: model sizes (default ControllerConfig()).
-        encoder: text encoder name for :func:`motion_env.text.load_text_encoder`; the default
-            config takes its width.
-        eval_every: evaluate on the val split every N steps (0: only at the end).
-        max_minutes: stop (and checkpoint) after this much wall time.
+        out_path: checkpoint file; written atomically every ``config.save_every`` steps and at
+            the end (resumed from when it exists and ``config.resume``: same batches).
+        config: training settings (default ControllerTrainConfig()).
+        model_config: model sizes (default ControllerConfig() with the text encoder's width; a
+            resumed run takes the checkpoint's, and a different one given here is an error).
+        text_encoder: an already loaded encoder to use instead of ``config.encoder`` (whose
+            name is then stored as ``config.encoder``).
 
     Returns:
         The final val metrics: :func:`evaluate_controller` with timed waypoints (``root_error_cm``
         raw, ``root_error_snapped_cm`` after snapping, location/trajectory error), the same with
         untimed waypoints (``untimed_*``, closest approach), and ``step``.
     """
-    from motion_env.data.dataset import read_split
-    from motion_env.models.checkpoint import (
-        config_from_dict,
-        read_checkpoint,
-        save_checkpoint,
-        text_encoder_record,
-    )
-    from motion_env.text.encoders import load_text_encoder
-
-    torch.manual_seed(seed)
+    config = config or ControllerTrainConfig()
+    device = config.device
+    torch.manual_seed(config.seed)
     out_path = Path(out_path)
-    settings = TrainSettings(
-        steps=steps, batch_size=batch_size, lr=lr, window=window, seed=seed, text_noise=text_noise
-    )
-    text_encoder = load_text_encoder(encoder, device=device)
+    if text_encoder is None:
+        text_encoder = load_text_encoder(config.encoder, device=device)
+    else:
+        config = replace(config, encoder=text_encoder.name)
     train = path_data_from_clips(read_split(Path(data_dir), "train"), text_encoder.encode)
     val = path_data_from_clips(read_split(Path(data_dir), "val"), text_encoder.encode)
     tqdm.write(f"controller: {len(train.paths)} train clips, {len(val.paths)} val clips")
 
-    model = PathController(config or ControllerConfig(text_dim=int(text_encoder.dim))).to(device)
-    optimizer = torch.optim.AdamW(model.parameters(), lr=lr, weight_decay=1e-4)
-    start_step, metrics = 0, {}
-    if resume and out_path.is_file():
-        ckpt = read_checkpoint(out_path, CHECKPOINT_KIND)
+    # Built even when resuming, so that the seeded torch RNG stands where it always has afterwards.
+    model = PathController(model_config or ControllerConfig(text_dim=int(text_encoder.dim))).to(device)
+    optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=1e-4)
+    start = 0
+    ckpt = resume_checkpoint(out_path, CHECKPOINT_KIND, config.resume, model_config)
+    if ckpt is not None:
+        check_text_encoder(ckpt, text_encoder, out_path)
         model = PathController(config_from_dict(ControllerConfig, ckpt["config"])).to(device)
-        model.load_state_dict(ckpt["model"])
-        optimizer = torch.optim.AdamW(model.parameters(), lr=lr, weight_decay=1e-4)
-        optimizer.load_state_dict(ckpt["optimizer"])
-        start_step = int(ckpt["step"])
-        tqdm.write(f"controller: resuming {out_path} at step {start_step}")
+        optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=1e-4)
+        start = restore(ckpt, model, optimizer)
+        tqdm.write(f"controller: resuming {out_path} at step {start}")
     tqdm.write(f"controller: {model.num_parameters() / 1e6:.2f} M parameters")
 
-    def save(step: int) -> None:
-        save_checkpoint(out_path, kind=CHECKPOINT_KIND, config=model.config, model=model,
-                        optimizer=optimizer.state_dict(), step=step, settings=asdict(settings),
-                        text_encoder=text_encoder_record(text_encoder), metrics=metrics)  # fmt: skip
+    def save(step: int, metrics: dict[str, float]) -> None:
+        save_training_checkpoint(
+            out_path, kind=CHECKPOINT_KIND, model=model, optimizer=optimizer, step=step, settings=config,
+            metrics=metrics, text_encoder=text_encoder_record(text_encoder),
+        )  # fmt: skip
 
-    t0 = time.monotonic()
-    running: dict[str, float] = {}
-
-    def on_step(step: int, parts: dict[str, float]) -> bool:
-        for k, v in parts.items():
-            running[k] = 0.95 * running.get(k, v) + 0.05 * v
-        if step % 25 == 0:
-            tqdm.write(f"step {step} " + " ".join(f"{k}={v:.4f}" for k, v in running.items()))
-        if eval_every and step % eval_every == 0:
-            metrics.update(evaluate_controller(model, val, eval_windows, snap=False))
-            tqdm.write(f"step {step} val " + " ".join(f"{k}={v:.4f}" for k, v in metrics.items()))
-        out_of_time = max_minutes is not None and time.monotonic() - t0 > 60 * max_minutes
-        if step % checkpoint_every == 0 or step == steps or out_of_time:
-            save(step)
-        if out_of_time:
-            tqdm.write(f"controller: time budget reached at step {step}")
-        return out_of_time
-
-    _, step = fit(model, train, settings, optimizer, start_step, on_step, progress)
-    metrics.update(evaluate_controller(model, val, eval_windows))
-    untimed = evaluate_controller(model, val, eval_windows, mode="untimed", snap=False)
+    _, step = fit(
+        model, train, config, optimizer, start, save=save,
+        evaluate=lambda: evaluate_controller(model, val, config.eval_windows, snap=False),
+    )  # fmt: skip
+    metrics = evaluate_controller(model, val, config.eval_windows)
+    untimed = evaluate_controller(model, val, config.eval_windows, mode="untimed", snap=False)
     metrics.update({f"untimed_{k}": v for k, v in untimed.items()})
     metrics["step"] = float(step)
-    save(step)
+    save(step, metrics)
     tqdm.write("controller: final val " + " ".join(f"{k}={v:.4f}" for k, v in metrics.items()))
     return metrics

@@ -1,0 +1,205 @@
+"""Videos: THE video writer (:class:`VideoWriter`, .mp4 or .gif) and the stick-figure video.
+
+- :data:`VIDEO_SUFFIXES`, :func:`check_video_path`, :func:`check_fps`: what a video path and
+  rate must be, checked before any work;
+- :class:`VideoWriter`: streams RGB frames to an .mp4 (ffmpeg, H.264) or a .gif (Pillow); used
+  here and by the MuJoCo humanoid video (:func:`motion_env.render.humanoid.render_humanoid_video`);
+- :func:`render_video`: a stick-figure video of a motion
+  (:class:`motion_env.render.skeleton.SkeletonRenderer` frame by frame).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from motion_env.motion.types import Motion
+from motion_env.render.camera import Camera, follow_centers, framing_camera
+from motion_env.render.scene import as_obstacles, as_waypoints, obstacle_extent
+from motion_env.render.skeleton import SkeletonRenderer
+
+VIDEO_SUFFIXES = (".mp4", ".gif")
+_MAP_EXTENT = 4.0  # metres: videos of routes wider than this get a top-down map
+
+
+def check_video_path(path: str | Path, width: int | None = None, height: int | None = None) -> Path:
+    """`path` as a Path if it names a video type we write (and, for an .mp4, the size is even)."""
+    path = Path(path)
+    if path.suffix.lower() not in VIDEO_SUFFIXES:
+        raise ValueError(f"{path}: unknown video type {path.suffix!r} (expected one of {VIDEO_SUFFIXES})")
+    if path.suffix.lower() == ".mp4" and width is not None and height is not None and (width | height) % 2:
+        raise ValueError(f"an .mp4 needs an even frame size, got {width}x{height}")
+    return path
+
+
+def check_fps(fps: float) -> float:
+    """`fps` as a float if it is a positive frame rate."""
+    fps = float(fps)
+    if not (np.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps must be a positive number, got {fps!r}")
+    return fps
+
+
+def frame_indices(num_frames: int, src_fps: float, fps: float) -> np.ndarray:
+    """Source frame shown at each output frame when the video is written at `fps`."""
+    count = max(1, int(np.floor(num_frames * fps / src_fps + 0.5)))
+    return np.minimum((np.arange(count) * src_fps / fps + 1e-6).astype(int), num_frames - 1)
+
+
+class VideoWriter:
+    """Streams RGB frames to an .mp4 (ffmpeg, H.264) or a .gif (Pillow, a palette per frame).
+
+    Call :meth:`append` per frame, then :meth:`close`; on an error, :meth:`abort` removes the
+    half-written file. The type is the suffix of `path` (:func:`check_video_path`).
+    """
+
+    def __init__(self, path: str | Path, fps: float) -> None:
+        self.path, self.fps = check_video_path(path), check_fps(fps)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._gif: list = []
+        self._mp4 = None
+        if self.path.suffix.lower() == ".mp4":
+            import imageio.v2 as imageio
+
+            # macro_block_size=2: yuv420p needs even sizes; imageio's default 16 would rescale.
+            self._mp4 = imageio.get_writer(
+                self.path, format="FFMPEG", fps=self.fps, codec="libx264", quality=7,
+                pixelformat="yuv420p", macro_block_size=2,
+            )  # fmt: skip
+
+    def append(self, frame: np.ndarray) -> None:
+        """Add one (height, width, 3) uint8 RGB frame."""
+        if self._mp4 is not None:
+            self._mp4.append_data(frame)
+        else:
+            from PIL import Image
+
+            # Quantising now keeps a long GIF at one byte per pixel in memory. Median cut costs
+            # ~25 ms a frame but, unlike the faster octree, leaves no bands in the floor gradient.
+            self._gif.append(Image.fromarray(frame).quantize(colors=255, method=Image.Quantize.MEDIANCUT))
+
+    def abort(self) -> None:
+        """Stop without leaving a half-written video behind."""
+        self._gif.clear()
+        if self._mp4 is not None:
+            self._mp4.close()
+        self.path.unlink(missing_ok=True)
+
+    def close(self) -> None:
+        """Finish the file (a .gif is written only now)."""
+        if self._mp4 is not None:
+            self._mp4.close()
+        elif self._gif:
+            self._gif[0].save(
+                self.path,
+                save_all=True,
+                append_images=self._gif[1:],
+                duration=max(20, int(round(1000 / self.fps))),
+                loop=0,
+            )
+
+
+def render_video(
+    motion: Motion,
+    path: str | Path,
+    *,
+    fps: float | None = None,
+    waypoints: np.ndarray | Sequence | None = None,
+    obstacles: np.ndarray | Sequence | None = None,
+    highlight_frames: Iterable[int] | None = None,
+    title: str | None = None,
+    highlight_label: str | None = None,
+    camera: str = "follow",
+    width: int = 640,
+    height: int = 480,
+) -> Path:
+    """Write a stick-figure video of a motion (.mp4 or .gif, chosen by the suffix of `path`).
+
+    The view is a perspective front-left oblique; the floor grid, the root trail, the waypoints,
+    the obstacles, the caption and a frame counter are drawn, and when the route reaches beyond
+    the view a top-down map shows all of it.
+
+    Args:
+        motion: the clip; `motion.joints` (T, 22, 3).
+        path: output file, `.mp4` (H.264) or `.gif`.
+        fps: frame rate of the video; default `motion.fps`. At another rate each video frame
+            shows the motion frame current at its time.
+        waypoints: (K, 2) / (K, 3) (third column: frame index); default `motion.waypoints`.
+        obstacles: (N, 3) circles x, z, radius.
+        highlight_frames: motion frame indices to draw in red (e.g. physically implausible ones).
+        title: caption at the top; default `motion.text`.
+        highlight_label: text shown in the corner on highlighted frames.
+        camera: "follow" (a camera that tracks the smoothed pelvis) or "fixed" (one view that
+            frames the whole route).
+        width, height: frame size in pixels (even numbers for .mp4).
+
+    Returns:
+        The path written.
+    """
+    path = check_video_path(path, width, height)
+    if camera not in ("follow", "fixed"):
+        raise ValueError(f"camera must be 'follow' or 'fixed', got {camera!r}")
+    fps = check_fps(fps if fps is not None else motion.fps)
+    wps = as_waypoints(motion.waypoints if waypoints is None else waypoints)
+    obs = as_obstacles(obstacles)
+    title = motion.text if title is None else title
+    joints = motion.joints.astype(np.float64)
+    root_xz = joints[:, 0, [0, 2]]
+    highlighted = np.zeros(motion.num_frames + 1, dtype=bool)
+    for f in highlight_frames or ():
+        if not 0 <= int(f) < motion.num_frames:
+            raise ValueError(f"highlight frame {f} is outside the motion's {motion.num_frames} frames")
+        highlighted[int(f)] = True
+
+    scene = [root_xz]
+    if wps is not None:
+        scene.append(wps[:, :2])
+    if obs is not None:
+        scene.append(obstacle_extent(obs))
+    scene_xz = np.concatenate(scene)
+    bounds = np.array(
+        [scene_xz[:, 0].min(), scene_xz[:, 0].max(), scene_xz[:, 1].min(), scene_xz[:, 1].max()]
+    )
+    if camera == "fixed":
+        body = joints.reshape(-1, 3)
+        floor = np.stack([scene_xz[:, 0], np.zeros(len(scene_xz)), scene_xz[:, 1]], -1)
+        cam, fixed_center = framing_camera(np.concatenate([body, floor]), Camera(), width / height)
+        centers = np.repeat(fixed_center[None], motion.num_frames, 0)
+        inset = False
+    else:
+        cam, centers = Camera(), follow_centers(root_xz, motion.fps)
+        # The map is only worth its corner when the route does not fit in the follow view.
+        inset = bool((bounds[1::2] - bounds[::2]).max() > _MAP_EXTENT)
+    renderer = SkeletonRenderer(width, height, cam)
+
+    indices = frame_indices(motion.num_frames, motion.fps, fps)
+    writer = VideoWriter(path, fps)
+    try:
+        for i, src in enumerate(indices):
+            # An output frame stands for every source frame until the next one: flag it if any is.
+            stop = indices[i + 1] if i + 1 < len(indices) else motion.num_frames
+            flagged = bool(highlighted[src : max(stop, src + 1)].any())
+            frame = renderer.draw(
+                joints[src],
+                center=centers[src],
+                trail=root_xz[: src + 1],
+                path=root_xz,
+                waypoints=wps,
+                obstacles=obs,
+                frame=int(src),
+                fps=motion.fps,
+                title=title,
+                label=f"frame {src + 1}/{motion.num_frames}   {src / motion.fps:5.2f} s",
+                highlight=flagged,
+                flag=highlight_label,
+                inset=inset,
+                inset_bounds=bounds,
+            )
+            writer.append(frame)
+    except BaseException:
+        writer.abort()
+        raise
+    writer.close()
+    return path

@@ -1,0 +1,98 @@
+"""Training settings: the base of the trainers' config dataclasses and their checks.
+
+Each trainer has one config dataclass derived from :class:`TrainConfig`
+(:class:`~motion_env.training.vqvae.VQVAETrainConfig`,
+:class:`~motion_env.training.gpt.GPTTrainConfig`,
+:class:`~motion_env.training.controller.ControllerTrainConfig`), each field written
+``name: type = default  # what it does``. A config is checked when it is made (a ``ValueError``
+names the field and the value), is stored in the checkpoint as a plain dict
+(``ckpt["settings"]``), and is the command line of ``motion-env train <model>``: one
+``--field-name`` option per field, with the comment as its help
+(:func:`motion_env.args.add_dataclass_arguments`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import typing
+from dataclasses import dataclass, fields
+from typing import Any
+
+import torch
+
+_EXPECTED = {bool: "True or False", int: "an integer", float: "a number", str: "a non-empty string"}
+
+
+def _is(kind: type, value: Any) -> bool:
+    if kind is bool:
+        return isinstance(value, bool)
+    if kind is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    if kind is float:
+        return isinstance(value, int | float) and not isinstance(value, bool) and not math.isnan(value)
+    if kind is str:
+        return isinstance(value, str) and bool(value.strip())
+    return True
+
+
+def check_at_least(config: Any, low: float, *names: str) -> None:
+    """ValueError unless each named field of `config` is >= `low`."""
+    for name in names:
+        value = getattr(config, name)
+        if not value >= low:
+            raise ValueError(f"{type(config).__name__}.{name} must be >= {low}, got {value!r}")
+
+
+def check_above(config: Any, low: float, *names: str) -> None:
+    """ValueError unless each named field of `config` is > `low`."""
+    for name in names:
+        value = getattr(config, name)
+        if not value > low:
+            raise ValueError(f"{type(config).__name__}.{name} must be > {low}, got {value!r}")
+
+
+def check_fraction(config: Any, *names: str) -> None:
+    """ValueError unless each named field of `config` is in [0, 1]."""
+    for name in names:
+        value = getattr(config, name)
+        if not 0 <= value <= 1:
+            raise ValueError(f"{type(config).__name__}.{name} must be in [0, 1], got {value!r}")
+
+
+@dataclass(kw_only=True)
+class TrainConfig:
+    """The settings every trainer has: seeding, device, resuming, bookkeeping cadence, time limit.
+
+    A trainer's own config adds its optimisation settings (steps, batch size, learning rate, ...),
+    may change these defaults, and checks its fields in ``__post_init__`` after this one's.
+    """
+
+    seed: int = 0  # seed of the model init and of the batch sampling
+    device: str = "cpu"  # torch device: cpu, cuda, cuda:1, ...
+    resume: bool = True  # continue from the checkpoint when it exists (--no-resume: start afresh)
+    log_every: int = 50  # steps between loss lines in the log
+    save_every: int = 100  # steps between checkpoints (one is also written at the end)
+    eval_every: int = 0  # steps between validations on the val split (0: only at the end)
+    max_minutes: float = math.inf  # stop, with a checkpoint, after this much wall time
+    progress: bool = True  # show a tqdm progress bar (--no-progress: hide it)
+
+    def __post_init__(self) -> None:
+        hints = typing.get_type_hints(type(self))
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if not _is(hints[f.name], value):
+                expected = _EXPECTED[hints[f.name]]
+                raise ValueError(f"{type(self).__name__}.{f.name} must be {expected}, got {value!r}")
+        check_at_least(self, 0, "seed", "eval_every", "max_minutes")
+        check_at_least(self, 1, "log_every", "save_every")
+        try:
+            torch.device(self.device)
+        except (RuntimeError, ValueError) as exc:
+            raise ValueError(
+                f"{type(self).__name__}.device {self.device!r} is not a torch device: {exc}"
+            ) from exc
+
+    def to_dict(self) -> dict[str, Any]:
+        """The settings as a plain dict (what the checkpoint stores under ``"settings"``)."""
+        return dataclasses.asdict(self)

@@ -1,0 +1,282 @@
+"""Training of the token GPT on the train clips, tokenised by a trained VQ-VAE.
+
+Each clip is encoded once by the VQ-VAE (features normalised with the dataset's
+:class:`~motion_env.models.normalizer.Normalizer`); a batch is random crops of the token
+sequences (a clip drawn in proportion to its length), each with a random caption of its clip
+(embeddings computed once, jittered per sample), path features from the clip's own gait-free root
+path, and the null text for a share of samples (classifier-free guidance). Ends with the
+teacher-forced token accuracy and perplexity on the val split (:func:`evaluate_gpt`). The loop,
+the learning-rate schedule and the checkpoints are :mod:`motion_env.training.loop`'s.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from motion_env.models.checkpoint import (
+    check_text_encoder,
+    config_from_dict,
+    load_checkpoint,
+    text_encoder_record,
+)
+from motion_env.models.gpt import GPTConfig, TokenGPT
+from motion_env.models.normalizer import Normalizer
+from motion_env.models.vqvae import VQVAE, VQVAEConfig
+from motion_env.text.encoders import DEFAULT_TEXT_ENCODER, TextEncoder, jitter_embeddings, load_text_encoder
+from motion_env.training.config import TrainConfig, check_above, check_at_least, check_fraction
+from motion_env.training.loop import (
+    load_normalizer,
+    load_split,
+    restore,
+    resume_checkpoint,
+    run_loop,
+    save_training_checkpoint,
+)
+
+CHECKPOINT_KIND = "gpt"
+
+
+@dataclass(kw_only=True)
+class GPTTrainConfig(TrainConfig):
+    """How to train the token GPT (stored in its checkpoint under ``"settings"``)."""
+
+    steps: int = 1500  # total optimisation steps (those of a resumed run included)
+    batch_size: int = 64  # token crops per step
+    lr: float = 3e-4  # peak AdamW learning rate (linear warm-up, cosine decay to a tenth)
+    text_drop: float = 0.1  # share of samples trained with the null text (classifier-free guidance)
+    start_crop: float = 0.3  # share of crops that start at the clip's first token
+    text_noise: float = 0.3  # expected norm of the noise added to caption embeddings (0: off)
+    encoder: str = DEFAULT_TEXT_ENCODER  # text encoder name (motion_env.text.load_text_encoder)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        check_at_least(self, 1, "steps", "batch_size")
+        check_above(self, 0, "lr")
+        check_fraction(self, "text_drop", "start_crop")
+        check_at_least(self, 0, "text_noise")
+
+
+class _TokenSet:
+    """Every clip of a split as tokens + per-token path features + caption indices."""
+
+    def __init__(self, clips: list[Any], vq: VQVAE, normalizer: Normalizer, device: Any) -> None:
+        from motion_env.models.path_features import token_path_features
+        from motion_env.motion.trajectory import gait_free_path, root_path_from_joints
+
+        rate = vq.rate
+        self.codes: list[torch.Tensor] = []
+        self.path: list[torch.Tensor] = []
+        self.captions: list[list[str]] = []
+        self.names: list[str] = []
+        for clip in clips:
+            feats = np.asarray(clip.features, np.float32)
+            n = feats.shape[0] // rate
+            if n < 2 or not clip.captions:
+                continue
+            x = torch.from_numpy(normalizer.normalize(feats[: n * rate]))[None].to(
+                device
+            )  # (1, n * rate, 263)
+            self.codes.append(vq.encode(x)[0].cpu())
+            # The generator's paths come from the path controller, which has no gait in them.
+            path = gait_free_path(root_path_from_joints(np.asarray(clip.joints, np.float32)))
+            pf = token_path_features(path, rate)
+            self.path.append(torch.from_numpy(pf[:n]))
+            self.captions.append(list(clip.captions))
+            self.names.append(clip.name)
+        if not self.codes:
+            raise ValueError("no clip with at least two tokens and a caption")
+
+    def __len__(self) -> int:
+        return len(self.codes)
+
+
+def _gpt_batch(
+    data: _TokenSet,
+    clip_idx: np.ndarray,
+    starts: np.ndarray,
+    length: int,
+    start_token: int,
+    text_table: torch.Tensor,
+    caption_row: dict[str, int],
+    caption_pick: np.ndarray | None,
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Inputs, path features, targets (-1 padded) and text embeddings for crops of `length` tokens."""
+    B = len(clip_idx)
+    prev = torch.full((B, length), start_token, dtype=torch.long)
+    targets = torch.full((B, length), -1, dtype=torch.long)
+    path = torch.zeros(B, length, data.path[0].shape[1])
+    rows = []
+    for b, (i, s) in enumerate(zip(clip_idx, starts, strict=True)):
+        codes = data.codes[i][s : s + length]
+        n = codes.shape[0]
+        targets[b, :n] = codes
+        path[b, :n] = data.path[i][s : s + n]
+        if s > 0:
+            prev[b, 0] = data.codes[i][s - 1]
+        prev[b, 1:n] = codes[: n - 1]
+        caps = data.captions[i]
+        pick = 0 if caption_pick is None else int(caption_pick[b] * len(caps))
+        rows.append(caption_row[caps[pick]])
+    return prev, path, targets, text_table[rows]
+
+
+@torch.no_grad()
+def evaluate_gpt(
+    model: TokenGPT,
+    data: _TokenSet,
+    text_table: torch.Tensor,
+    caption_row: dict[str, int],
+    device: str | torch.device = "cpu",
+    max_clips: int | None = None,
+) -> dict[str, float]:
+    """Teacher-forced next-token accuracy and perplexity over whole clips (first caption each).
+
+    Clips longer than the window are cut into consecutive windows; each later window starts from
+    the real previous token, as generation with the sliding window does. `max_clips` evaluates an
+    evenly spaced subset.
+    """
+    model.eval()
+    L = model.config.block_size
+    total_loss, correct, count = 0.0, 0, 0
+    picks = range(len(data))
+    if max_clips is not None and max_clips < len(data):
+        picks = np.linspace(0, len(data) - 1, max(1, max_clips)).astype(int)
+    for i in picks:
+        n = data.codes[i].shape[0]
+        for s in range(0, n, L):
+            prev, path, targets, text = _gpt_batch(
+                data, np.array([i]), np.array([s]), min(L, n - s), model.config.start_token,
+                text_table, caption_row, None,
+            )  # fmt: skip
+            logits, _ = model(prev.to(device), path.to(device), text.to(device))
+            t = targets.to(device)
+            total_loss += float(torch.nn.functional.cross_entropy(logits[0], t[0], reduction="sum"))
+            correct += int((logits[0].argmax(-1) == t[0]).sum())
+            count += t.shape[1]
+    return {"accuracy": correct / count, "perplexity": math.exp(total_loss / count), "tokens": float(count)}
+
+
+def _embed_captions(encoder: Any, sets: list[_TokenSet]) -> tuple[torch.Tensor, dict[str, int]]:
+    unique = sorted({c for s in sets for caps in s.captions for c in caps})
+    table = torch.cat([encoder.encode(unique[i : i + 256]) for i in range(0, len(unique), 256)])
+    return table, {c: i for i, c in enumerate(unique)}
+
+
+def train_gpt(
+    data_dir: str | Path,
+    vqvae_path: str | Path,
+    out_path: str | Path,
+    config: GPTTrainConfig | None = None,
+    model_config: GPTConfig | None = None,
+    text_encoder: TextEncoder | None = None,
+) -> dict[str, float]:
+    """Train the token GPT on the train clips, tokenised by the VQ-VAE at `vqvae_path`.
+
+    Args:
+        data_dir: HumanML3D-layout dataset.
+        vqvae_path: a checkpoint written by :func:`motion_env.training.vqvae.train_vqvae`.
+        out_path: GPT checkpoint (periodic, atomic, resumable).
+        config: training settings (default GPTTrainConfig()).
+        model_config: model config; vocab_size is taken from the VQ-VAE (default GPTConfig()
+            with the text encoder's width); resuming needs the same.
+        text_encoder: an already loaded encoder to use instead of ``config.encoder`` (whose
+            name is then stored as ``config.encoder``).
+
+    Returns:
+        final metrics: "step", "loss", "seconds_per_step", "val_accuracy", "val_perplexity",
+        "val_tokens", and the same on the train clips ("train_", for comparison).
+    """
+    data_dir, out_path = Path(data_dir), Path(out_path)
+    config = config or GPTTrainConfig()
+    device = config.device
+    vq, vq_ckpt = load_checkpoint(vqvae_path, "vqvae", VQVAEConfig, VQVAE, device)
+    if text_encoder is None:
+        text_encoder = load_text_encoder(config.encoder, device=device)
+    else:
+        config = replace(config, encoder=text_encoder.name)
+    model_config = model_config or GPTConfig(text_dim=int(text_encoder.dim))
+    if model_config.vocab_size != vq.config.codebook_size:
+        model_config = config_from_dict(
+            GPTConfig, {**asdict(model_config), "vocab_size": vq.config.codebook_size}
+        )
+    if model_config.text_dim != text_encoder.dim:
+        raise ValueError(
+            f"GPTConfig.text_dim={model_config.text_dim} but the text encoder {text_encoder.name} "
+            f"is {text_encoder.dim}-d"
+        )
+    normalizer = load_normalizer(data_dir)
+    train = _TokenSet(load_split(data_dir, "train"), vq, normalizer, device)
+    val = _TokenSet(load_split(data_dir, "val"), vq, normalizer, device)
+    table, caption_row = _embed_captions(text_encoder, [train, val])
+
+    torch.manual_seed(config.seed)
+    model = TokenGPT(model_config).to(device)
+    decay = [p for n, p in model.named_parameters() if p.ndim >= 2 and "emb" not in n]
+    no_decay = [p for n, p in model.named_parameters() if not (p.ndim >= 2 and "emb" not in n)]
+    opt = torch.optim.AdamW(
+        [{"params": decay, "weight_decay": 0.1}, {"params": no_decay, "weight_decay": 0.0}],
+        lr=config.lr, betas=(0.9, 0.95),
+    )  # fmt: skip
+    ckpt = resume_checkpoint(out_path, CHECKPOINT_KIND, config.resume, model_config)
+    if ckpt is not None:
+        check_text_encoder(ckpt, text_encoder, out_path)
+    start = restore(ckpt, model, opt)
+    rng = np.random.default_rng([config.seed, start])
+    L, B = model_config.block_size, config.batch_size
+    n_tokens = np.array([c.shape[0] for c in train.codes])
+    weights = n_tokens / n_tokens.sum()  # a clip is drawn in proportion to its length
+
+    def save(step: int, metrics: dict[str, float]) -> None:
+        save_training_checkpoint(
+            out_path, kind=CHECKPOINT_KIND, model=model, optimizer=opt, step=step, settings=config,
+            metrics=metrics, text_encoder=text_encoder_record(text_encoder),
+            vqvae={"path": str(vqvae_path), "step": int(vq_ckpt.get("step", 0))},
+        )  # fmt: skip
+
+    def train_step(step: int) -> dict[str, float]:
+        model.train()
+        idx = rng.choice(len(train), size=B, p=weights)
+        span = np.maximum(n_tokens[idx] - L, 0)
+        starts = np.where(rng.random(B) < config.start_crop, 0, (rng.random(B) * (span + 1)).astype(int))
+        # Pad only to the longest crop of the batch: most clips are far shorter than the window.
+        length = int(min(L, (n_tokens[idx] - starts).max()))
+        prev, path, targets, text = _gpt_batch(
+            train, idx, starts, length, model_config.start_token, table, caption_row, rng.random(B)
+        )
+        text = jitter_embeddings(text, config.text_noise, rng)
+        drop = torch.from_numpy(rng.random(B) < config.text_drop)
+        _, loss = model(
+            prev.to(device), path.to(device), text.to(device), targets.to(device), drop.to(device)
+        )
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
+        opt.step()
+        return {"loss": float(loss.detach())}
+
+    result = run_loop(
+        CHECKPOINT_KIND, config, opt, train_step, warmup=min(100, config.steps // 10 + 1), start=start,
+        save=save, evaluate=lambda: evaluate_gpt(model, val, table, caption_row, device),
+        postfix={"loss": ".3f"},
+    )  # fmt: skip
+    last = result.last
+    if result.done == 0 and ckpt is not None:
+        last = dict(ckpt.get("metrics", {}))
+    val_metrics = evaluate_gpt(model, val, table, caption_row, device)
+    train_metrics = evaluate_gpt(model, train, table, caption_row, device, max_clips=len(val.codes))
+    metrics = {
+        "step": float(result.step),
+        **last,
+        "seconds_per_step": result.seconds_per_step,
+        **{f"val_{k}": v for k, v in val_metrics.items()},
+        **{f"train_{k}": v for k, v in train_metrics.items()},
+    }
+    save(result.step, metrics)
+    model.train(False)
+    return metrics

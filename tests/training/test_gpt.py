@@ -1,0 +1,61 @@
+"""The GPT trainer on a tiny dataset: tokens of a tiny VQ-VAE, a few steps, resuming, text encoder checks."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from motion_env.models.checkpoint import load_checkpoint
+from motion_env.models.gpt import GPTConfig, TokenGPT
+from motion_env.models.vqvae import VQVAEConfig
+from motion_env.text.encoders import TextEncoder
+from motion_env.training.gpt import GPTTrainConfig, train_gpt
+from motion_env.training.vqvae import VQVAETrainConfig, train_vqvae
+
+TINY_VQ = VQVAEConfig(width=16, code_dim=8, codebook_size=16, depth=1)
+TINY_GPT = GPTConfig(block_size=8, n_layer=1, n_head=2, n_embd=16, text_dim=8)
+
+
+@pytest.fixture
+def vqvae(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("vqvae") / "vq.pt"
+    train_vqvae(
+        tiny_dataset, out, VQVAETrainConfig(steps=4, batch_size=4, window=32, progress=False), TINY_VQ
+    )
+    return out
+
+
+def test_train_gpt_end_to_end(
+    tiny_dataset: Path, vqvae: Path, tmp_path: Path, hash_text: Callable[..., TextEncoder]
+) -> None:
+    out = tmp_path / "gpt.pt"
+    fast = dict(batch_size=4, save_every=2, log_every=2, progress=False)
+    m = train_gpt(tiny_dataset, vqvae, out, GPTTrainConfig(steps=4, **fast), TINY_GPT, hash_text())
+    assert m["step"] == 4 and 0.0 <= m["val_accuracy"] <= 1.0
+    assert 1.0 <= m["val_perplexity"] < 1e4 and 0.0 <= m["train_accuracy"] <= 1.0
+    model, ckpt = load_checkpoint(out, "gpt", GPTConfig, TokenGPT)
+    assert model.config.vocab_size == TINY_VQ.codebook_size  # taken from the VQ-VAE
+    assert ckpt["text_encoder"] == {"name": "hash", "dim": 8}
+    assert ckpt["vqvae"] == {"path": str(vqvae), "step": 4}
+    # The settings are stored as a plain dict, with the name of the encoder actually used.
+    assert ckpt["settings"] == GPTTrainConfig(steps=4, encoder="hash", **fast).to_dict()
+    assert (
+        train_gpt(tiny_dataset, vqvae, out, GPTTrainConfig(steps=5, **fast), TINY_GPT, hash_text())["step"]
+        == 5
+    )
+    with pytest.raises(ValueError, match="trained with text encoder 'hash'"):
+        train_gpt(tiny_dataset, vqvae, out, GPTTrainConfig(steps=6, **fast), TINY_GPT, hash_text("other"))
+
+
+def test_train_gpt_is_seeded_and_checks_the_text_width(
+    tiny_dataset: Path, vqvae: Path, tmp_path: Path, hash_text: Callable[..., TextEncoder]
+) -> None:
+    config = GPTTrainConfig(steps=3, batch_size=4, progress=False)
+    a = train_gpt(tiny_dataset, vqvae, tmp_path / "a.pt", config, TINY_GPT, hash_text())
+    b = train_gpt(tiny_dataset, vqvae, tmp_path / "b.pt", config, TINY_GPT, hash_text())
+    assert a["loss"] == b["loss"] and a["val_perplexity"] == b["val_perplexity"]
+    wide = GPTConfig(block_size=8, n_layer=1, n_head=2, n_embd=16, text_dim=16)
+    with pytest.raises(ValueError, match="text_dim=16"):
+        train_gpt(tiny_dataset, vqvae, tmp_path / "c.pt", config, wide, hash_text())

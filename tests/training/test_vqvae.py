@@ -1,0 +1,64 @@
+"""The VQ-VAE trainer on a tiny dataset: a few steps, the checkpoint, resuming, seeding."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from motion_env.data.dataset import load_stats
+from motion_env.models.checkpoint import load_checkpoint, read_checkpoint
+from motion_env.models.normalizer import Normalizer
+from motion_env.models.vqvae import VQVAE, VQVAEConfig
+from motion_env.training.vqvae import VQVAETrainConfig, train_vqvae
+
+TINY_VQ = VQVAEConfig(width=16, code_dim=8, codebook_size=16, depth=1)
+FAST = dict(batch_size=4, window=32, progress=False)
+
+
+def test_train_vqvae_saves_resumes_and_evaluates(tiny_dataset: Path, tmp_path: Path) -> None:
+    out = tmp_path / "vq.pt"
+    config = VQVAETrainConfig(steps=6, save_every=3, log_every=3, **FAST)
+    m1 = train_vqvae(tiny_dataset, out, config, TINY_VQ)
+    assert m1["step"] == 6 and np.isfinite(m1["loss"])
+    assert m1["val_mpjpe_cm"] > 0 and np.isfinite(m1["val_mpjpe_cm"])
+    ckpt = read_checkpoint(out, "vqvae")
+    assert ckpt["step"] == 6 and "optimizer" in ckpt and ckpt["settings"] == config.to_dict()
+    assert ckpt["metrics"] == m1
+    # The dataset's Mean/Std travel with the VQ-VAE, exactly, for the generator's Normalizer.
+    mean, std = load_stats(tiny_dataset)
+    normalizer = Normalizer.from_checkpoint(ckpt, out)
+    np.testing.assert_array_equal(normalizer.mean, mean)
+    np.testing.assert_array_equal(normalizer.std, std)
+    assert ckpt["mean"].dtype == torch.float32 and ckpt["mean"].shape == (263,)
+    model, _ = load_checkpoint(out, "vqvae", VQVAEConfig, VQVAE)
+    assert model.config == TINY_VQ
+    # Resuming continues from the saved step (6) to the new total (8).
+    resumed = train_vqvae(tiny_dataset, out, VQVAETrainConfig(steps=8, **FAST), TINY_VQ)
+    assert resumed["step"] == 8
+    # Nothing left to do: the metrics of the last step come from the checkpoint.
+    again = train_vqvae(tiny_dataset, out, VQVAETrainConfig(steps=8, **FAST), TINY_VQ)
+    assert again["step"] == 8 and again["loss"] == resumed["loss"]
+    other = VQVAEConfig(width=8, code_dim=8, codebook_size=16, depth=1)
+    with pytest.raises(ValueError, match="cannot resume"):
+        train_vqvae(tiny_dataset, out, VQVAETrainConfig(steps=9, **FAST), other)
+    fresh = train_vqvae(tiny_dataset, out, VQVAETrainConfig(steps=2, resume=False, **FAST), other)
+    assert fresh["step"] == 2
+
+
+def test_train_vqvae_is_seeded(tiny_dataset: Path, tmp_path: Path) -> None:
+    config = VQVAETrainConfig(steps=3, **FAST)
+    a = train_vqvae(tiny_dataset, tmp_path / "a.pt", config, TINY_VQ)
+    b = train_vqvae(tiny_dataset, tmp_path / "b.pt", config, TINY_VQ)
+    assert a["loss"] == b["loss"] and a["val_mpjpe_cm"] == b["val_mpjpe_cm"]
+    c = train_vqvae(tiny_dataset, tmp_path / "c.pt", VQVAETrainConfig(steps=3, seed=1, **FAST), TINY_VQ)
+    assert c["loss"] != a["loss"]
+
+
+def test_window_must_fit_the_rate(tiny_dataset: Path, tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="multiple of rate"):
+        train_vqvae(tiny_dataset, tmp_path / "vq.pt", VQVAETrainConfig(steps=1, window=30), TINY_VQ)
+    with pytest.raises(ValueError, match="no train clip has at least 512 frames"):
+        train_vqvae(tiny_dataset, tmp_path / "vq.pt", VQVAETrainConfig(steps=1, window=512), TINY_VQ)
