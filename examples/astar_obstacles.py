@@ -12,8 +12,7 @@ prints whether the goal was reached and how close the pelvis came to an obstacle
 
 from __future__ import annotations
 
-import json
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import gymnasium as gym
 import numpy as np
@@ -21,7 +20,6 @@ import numpy as np
 import motion_env
 from motion_env.args import ExampleArgs, parse_dataclass
 from motion_env.envs.arena import obstacle_distance
-from motion_env.render import plot_path, render_video
 from policies import AStarPolicy
 
 
@@ -38,10 +36,6 @@ class Args(ExampleArgs):
 
 # Circles (x, z, radius) between the start (origin, facing +Z) and the goal.
 OBSTACLES = np.array([[0.0, 3.0, 1.0], [2.2, 5.6, 0.8], [-0.2, 6.6, 0.6]])
-
-
-def parse_args(argv: list[str] | None = None) -> Args:
-    return parse_dataclass(Args, argv, description=__doc__)
 
 
 def main(args: Args) -> dict:
@@ -82,15 +76,11 @@ def main(args: Args) -> dict:
     motion = motion_env.Motion(
         joints, text=args.text, waypoints=goal[None], meta={"example": "astar_obstacles"}
     )
-    motion.save(out / "astar_obstacles.npz")
-    render_video(motion, out / f"astar_obstacles.{args.video}", obstacles=OBSTACLES,
-                 width=args.width, height=args.height)  # fmt: skip
-    plot_path(motion, out / "astar_obstacles.png", obstacles=OBSTACLES,
-              title=f"A* around obstacles: {args.text}")  # fmt: skip
-    (out / "result.json").write_text(json.dumps({"args": asdict(args), **result}, indent=2))
-    print(json.dumps(result, indent=2))
+    args.write_outputs(
+        motion, "astar_obstacles", result, f"A* around obstacles: {args.text}", obstacles=OBSTACLES
+    )
     return result
 
 
 if __name__ == "__main__":
-    main(parse_args())
+    main(parse_dataclass(Args, description=__doc__))

@@ -14,15 +14,13 @@ and overall. Writes a video (edit frames highlighted), a top-down plot and the m
 
 from __future__ import annotations
 
-import json
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import gymnasium as gym
 import numpy as np
 
 import motion_env
 from motion_env.args import ExampleArgs, parse_dataclass
-from motion_env.render import plot_path, render_video
 from policies import WaypointPolicy
 
 
@@ -40,10 +38,6 @@ class Args(ExampleArgs):
 
 ROUTE = np.array([[0.0, 4.0], [0.0, 9.0]], np.float32)  # the route given at reset: straight north
 NEW_POINTS = np.array([[-2.5, 6.0], [-4.0, 3.0], [-2.0, 0.5]], np.float32)  # the edited path
-
-
-def parse_args(argv: list[str] | None = None) -> Args:
-    return parse_dataclass(Args, argv, description=__doc__)
 
 
 def max_step_near(joints: np.ndarray, frame: int, window: int = 10) -> float:
@@ -98,14 +92,10 @@ def main(args: Args) -> dict:
     title = f"{args.text} -> {args.text2} -> {args.text3}"
     points = np.concatenate([ROUTE, NEW_POINTS])
     motion = motion_env.Motion(joints, text=title, waypoints=points, meta={"example": "edit_path_midrollout"})
-    motion.save(out / "edit_path_midrollout.npz")
-    render_video(motion, out / f"edit_path_midrollout.{args.video}", highlight_frames=sorted(edits.values()),
-                 highlight_label="edit", width=args.width, height=args.height)  # fmt: skip
-    plot_path(motion, out / "edit_path_midrollout.png", title="route 1-2, then edited path 3-5")
-    (out / "result.json").write_text(json.dumps({"args": asdict(args), **result}, indent=2))
-    print(json.dumps(result, indent=2))
+    args.write_outputs(motion, "edit_path_midrollout", result, "route 1-2, then edited path 3-5",
+                       highlight_frames=sorted(edits.values()), highlight_label="edit")  # fmt: skip
     return result
 
 
 if __name__ == "__main__":
-    main(parse_args())
+    main(parse_dataclass(Args, description=__doc__))

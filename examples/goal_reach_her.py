@@ -17,20 +17,13 @@ Needs the optional extra: pip install -c constraints.txt "motion-env[rl]"  (stab
 
 from __future__ import annotations
 
-import json
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import gymnasium as gym
 import numpy as np
 
 import motion_env
-from motion_env.args import ExampleArgs, parse_dataclass
-from motion_env.render import plot_path, render_video
-
-try:
-    from stable_baselines3 import SAC, HerReplayBuffer
-except ImportError:  # the optional "rl" extra
-    SAC = HerReplayBuffer = None
+from motion_env.args import ExampleArgs, parse_dataclass, require
 
 
 @dataclass
@@ -47,10 +40,6 @@ class Args(ExampleArgs):
     goal_x: float = 2.0  # the evaluation goal, world metres
     goal_z: float = 3.0
     text: str = "a person walks forward"  # caption of the evaluation rollout
-
-
-def parse_args(argv: list[str] | None = None) -> Args:
-    return parse_dataclass(Args, argv, description=__doc__)
 
 
 def make_env(generator: object, args: Args, max_steps: int) -> gym.Env:
@@ -77,20 +66,16 @@ def rollout(env: gym.Env, act, goal: np.ndarray, text: str, seed: int) -> tuple[
 
 
 def main(args: Args) -> dict:
-    if SAC is None:
-        raise SystemExit(
-            "stable-baselines3 is not installed; install the optional extra: "
-            'pip install -c constraints.txt "motion-env[rl]"'
-        )
+    sb3 = require("stable_baselines3", "rl")  # the optional extra
     out, generator = args.setup()
 
     # Train: a random goal 1.5-4 m away every episode; HER relabels with goals reached later on.
     env = make_env(generator, args, args.episode_steps)
     env.reset(seed=args.seed)
-    model = SAC(
+    model = sb3.SAC(
         "MultiInputPolicy",
         env,
-        replay_buffer_class=HerReplayBuffer,
+        replay_buffer_class=sb3.HerReplayBuffer,
         replay_buffer_kwargs={"n_sampled_goal": args.n_sampled_goal, "goal_selection_strategy": "future"},
         learning_starts=args.learning_starts,
         batch_size=args.batch_size,
@@ -124,13 +109,9 @@ def main(args: Args) -> dict:
     motion = motion_env.Motion(
         joints, text=args.text, waypoints=goal[None], meta={"example": "goal_reach_her"}
     )
-    motion.save(out / "goal_reach_her_eval.npz")
-    render_video(motion, out / f"goal_reach_her_eval.{args.video}", width=args.width, height=args.height)
-    plot_path(motion, out / "goal_reach_her_eval.png", title=f"SAC + HER after {args.total_timesteps} steps")
-    (out / "result.json").write_text(json.dumps({"args": asdict(args), **result}, indent=2))
-    print(json.dumps(result, indent=2))
+    args.write_outputs(motion, "goal_reach_her_eval", result, f"SAC + HER after {args.total_timesteps} steps")
     return result
 
 
 if __name__ == "__main__":
-    main(parse_args())
+    main(parse_dataclass(Args, description=__doc__))

@@ -15,20 +15,13 @@ Needs the optional extra: pip install -c constraints.txt "motion-env[rl]"  (stab
 
 from __future__ import annotations
 
-import json
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import gymnasium as gym
 import numpy as np
 
 import motion_env
-from motion_env.args import ExampleArgs, parse_dataclass, parse_waypoints
-from motion_env.render import plot_path, render_video
-
-try:
-    from stable_baselines3 import PPO
-except ImportError:  # the optional "rl" extra
-    PPO = None
+from motion_env.args import ExampleArgs, parse_dataclass, parse_waypoints, require
 
 
 @dataclass
@@ -46,22 +39,13 @@ class Args(ExampleArgs):
     text: str = "a person walks forward"  # caption of the evaluation rollout
 
 
-def parse_args(argv: list[str] | None = None) -> Args:
-    return parse_dataclass(Args, argv, description=__doc__)
-
-
 def make_env(generator: object, args: Args, max_steps: int) -> gym.Env:
     """Waypoints-v0 with relative actions scaled to [-1, 1] and a flat observation, as PPO likes."""
-    env = gym.make(
-        "motion_env/Waypoints-v0",
-        generator=generator,
-        action_mode="relative",
-        frames_per_step=args.frames_per_step,
-        max_episode_steps=max_steps,
-    )
+    settings = {"action_mode": "relative", "frames_per_step": args.frames_per_step}
+    env = gym.make("motion_env/Waypoints-v0", generator=generator, max_episode_steps=max_steps, **settings)
     unit = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
-    env = gym.wrappers.TransformAction(env, lambda a: np.asarray(a, np.float32) * args.reach, unit)
-    return gym.wrappers.FlattenObservation(env)
+    scaled = gym.wrappers.TransformAction(env, lambda a: np.asarray(a, np.float32) * args.reach, unit)
+    return gym.wrappers.FlattenObservation(scaled)
 
 
 def rollout(env: gym.Env, act, route: np.ndarray, text: str, seed: int) -> tuple[np.ndarray, float, bool]:
@@ -76,17 +60,13 @@ def rollout(env: gym.Env, act, route: np.ndarray, text: str, seed: int) -> tuple
 
 
 def main(args: Args) -> dict:
-    if PPO is None:
-        raise SystemExit(
-            "stable-baselines3 is not installed; install the optional extra: "
-            'pip install -c constraints.txt "motion-env[rl]"'
-        )
+    sb3 = require("stable_baselines3", "rl")  # the optional extra
     out, generator = args.setup()
 
     # Train: random captions and routes every episode (drawn by the env from its seed).
     env = make_env(generator, args, args.episode_steps)
     env.reset(seed=args.seed)
-    model = PPO("MlpPolicy", env, n_steps=args.n_steps, batch_size=args.batch_size,
+    model = sb3.PPO("MlpPolicy", env, n_steps=args.n_steps, batch_size=args.batch_size,
                 learning_rate=args.learning_rate, seed=args.seed, device="cpu", verbose=0)  # fmt: skip
     model.learn(total_timesteps=args.total_timesteps)
     model.save(out / "ppo_waypoints.zip")
@@ -104,21 +84,17 @@ def main(args: Args) -> dict:
     )
     eval_env.close()
 
-    result = {
-        "total_timesteps": args.total_timesteps,
-        "eval_return": ppo_return,
-        "random_agent_return": random_return,
-        "eval_reached_last_waypoint": reached,
-        "eval_frames": int(len(joints)),
-    }
+    result = dict(
+        total_timesteps=args.total_timesteps,
+        eval_return=ppo_return,
+        random_agent_return=random_return,
+        eval_reached_last_waypoint=reached,
+        eval_frames=int(len(joints)),
+    )
     motion = motion_env.Motion(joints, text=args.text, waypoints=route, meta={"example": "sb3_ppo"})
-    motion.save(out / "sb3_ppo_eval.npz")
-    render_video(motion, out / f"sb3_ppo_eval.{args.video}", width=args.width, height=args.height)
-    plot_path(motion, out / "sb3_ppo_eval.png", title=f"PPO after {args.total_timesteps} steps: {args.text}")
-    (out / "result.json").write_text(json.dumps({"args": asdict(args), **result}, indent=2))
-    print(json.dumps(result, indent=2))
+    args.write_outputs(motion, "sb3_ppo_eval", result, f"PPO after {args.total_timesteps} steps: {args.text}")
     return result
 
 
 if __name__ == "__main__":
-    main(parse_args())
+    main(parse_dataclass(Args, description=__doc__))

@@ -12,8 +12,7 @@ distance to each waypoint at its closest approach and the largest joint move bet
 
 from __future__ import annotations
 
-import json
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import gymnasium as gym
 import numpy as np
@@ -21,7 +20,6 @@ import numpy as np
 import motion_env
 from motion_env.args import ExampleArgs, parse_dataclass, parse_waypoints
 from motion_env.motion.trajectory import waypoint_errors
-from motion_env.render import plot_path, render_video
 from policies import WaypointPolicy
 
 
@@ -31,10 +29,6 @@ class Args(ExampleArgs):
     text: str = "a person walks forward"  # caption
     route: str = "0,3;2.5,5.5;5,5;6,2"  # waypoints "x,z[,frame];..." in world metres
     max_steps: int = 800
-
-
-def parse_args(argv: list[str] | None = None) -> Args:
-    return parse_dataclass(Args, argv, description=__doc__)
 
 
 def main(args: Args) -> dict:
@@ -66,13 +60,9 @@ def main(args: Args) -> dict:
     }
 
     motion = motion_env.Motion(joints, text=args.text, waypoints=route, meta={"example": "waypoints_demo"})
-    motion.save(out / "waypoints_demo.npz")
-    render_video(motion, out / f"waypoints_demo.{args.video}", width=args.width, height=args.height)
-    plot_path(motion, out / "waypoints_demo.png")
-    (out / "result.json").write_text(json.dumps({"args": asdict(args), **result}, indent=2))
-    print(json.dumps(result, indent=2))
+    args.write_outputs(motion, "waypoints_demo", result)
     return result
 
 
 if __name__ == "__main__":
-    main(parse_args())
+    main(parse_dataclass(Args, description=__doc__))

@@ -7,6 +7,8 @@
 - :class:`ExampleArgs`: the settings every example shares (output folder, seed, model, threads,
   video size) and :meth:`ExampleArgs.setup`, which applies them.
 - :func:`parse_waypoints`: the ``"x,z[,t];..."`` text form of waypoints.
+- :func:`write_json`: results as a JSON file (parent folders created).
+- :func:`require`: import an optional dependency, or exit with the command that installs it.
 """
 
 from __future__ import annotations
@@ -23,8 +25,17 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 if TYPE_CHECKING:
     from motion_env.generation.generator import MotionGenerator
+    from motion_env.motion.types import Motion
 
-__all__ = ["ExampleArgs", "add_dataclass_arguments", "field_comments", "parse_dataclass", "parse_waypoints"]
+__all__ = [
+    "ExampleArgs",
+    "add_dataclass_arguments",
+    "field_comments",
+    "parse_dataclass",
+    "parse_waypoints",
+    "require",
+    "write_json",
+]
 
 T = TypeVar("T")
 
@@ -48,20 +59,41 @@ def field_comments(cls: type) -> dict[str, str]:
     return out
 
 
+def _converter(kind: Any, default: Any) -> Any:
+    """The argparse ``type=`` of a field: int, float or str, or for ``X | None`` an X that reads
+    ``none`` as None."""
+    if kind in (int, float, str):
+        return kind
+    args = [a for a in typing.get_args(kind) if a is not type(None)]
+    if len(args) == 1 and type(None) in typing.get_args(kind) and args[0] in (int, float, str):
+        inner = args[0]
+
+        def optional(text: str) -> Any:
+            return None if text.strip().lower() == "none" else inner(text)
+
+        optional.__name__ = inner.__name__  # argparse names the type in its errors
+        return optional
+    return type(default)
+
+
 def add_dataclass_arguments(parser: argparse.ArgumentParser, cls: type) -> None:
-    """Add one ``--field-name`` option per field of the dataclass `cls` (its default, its type)."""
+    """Add one ``--field-name`` option per field of the dataclass `cls` (its default, its type).
+
+    Booleans become ``--flag`` / ``--no-flag``; an ``X | None`` field takes ``none`` for None.
+    """
     comments = field_comments(cls)
     hints = typing.get_type_hints(cls)
     for f in dataclasses.fields(cls):
         flag = "--" + f.name.replace("_", "-")
         default = f.default if f.default is not dataclasses.MISSING else f.default_factory()  # type: ignore[misc]
-        help_text = f"{comments.get(f.name, '')} (default: {default!r})".strip()
+        # argparse formats help with %: a comment's own % signs are escaped.
+        help_text = f"{comments.get(f.name, '')} (default: {default!r})".strip().replace("%", "%%")
         if hints.get(f.name) is bool or isinstance(default, bool):
             parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=default, help=help_text)
         else:
-            kind = hints.get(f.name)
-            convert = kind if kind in (int, float, str) else type(default)
-            parser.add_argument(flag, type=convert, default=default, help=help_text)
+            parser.add_argument(
+                flag, type=_converter(hints.get(f.name), default), default=default, help=help_text
+            )
 
 
 def parse_dataclass(cls: type[T], argv: Sequence[str] | None = None, description: str | None = None) -> T:
@@ -93,6 +125,30 @@ def parse_waypoints(text: str, what: str = "--waypoints") -> list[list[float]]:
     return rows
 
 
+def write_json(path: str | Path, data: Any) -> Path:
+    """Write `data` as indented JSON to `path` (parent folders created) and say so on stdout."""
+    import json
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(data, indent=2) + "\n")
+    print(f"wrote {path}")
+    return path
+
+
+def require(module: str, extra: str) -> Any:
+    """Import an optional dependency; when it is missing, exit with the command that installs it."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise SystemExit(
+            f"{module} is not installed; install the optional extra: "
+            f'pip install -c constraints.txt "motion-env[{extra}]"'
+        ) from None
+
+
 @dataclass
 class ExampleArgs:
     """The settings every example shares; an example's ``Args`` subclasses it and adds its own."""
@@ -116,3 +172,34 @@ class ExampleArgs:
         out = Path(self.out)
         out.mkdir(parents=True, exist_ok=True)
         return out, MotionGenerator.from_pretrained(RANDOM_MODEL if self.random_model else self.model or None)
+
+    def write_outputs(
+        self,
+        motion: Motion,
+        stem: str,
+        result: dict[str, Any],
+        title: str | None = None,
+        **drawing: Any,
+    ) -> None:
+        """Write what an example made into the output folder and say where it went: the motion
+        (``stem.npz``), a video (``stem.mp4`` / ``.gif``), a top-down plot (``stem.png``) and
+        ``result.json`` (these settings and `result`). `drawing` goes to the video and the plot
+        (``obstacles=...``); ``highlight_frames`` / ``highlight_label`` to the video only."""
+        import json
+        from dataclasses import asdict
+
+        from motion_env.render import plot_path, render_video
+
+        out = Path(self.out)
+        plot_drawing = {k: v for k, v in drawing.items() if not k.startswith("highlight")}
+        written = [
+            motion.save(out / f"{stem}.npz"),
+            render_video(
+                motion, out / f"{stem}.{self.video}", width=self.width, height=self.height, **drawing
+            ),
+            plot_path(motion, out / f"{stem}.png", title=title, **plot_drawing),
+        ]
+        print(json.dumps(result, indent=2))
+        written.append(write_json(out / "result.json", {"args": asdict(self), **result}))
+        for path in written[:-1]:
+            print(f"wrote {path}")

@@ -280,9 +280,7 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_bench(args: argparse.Namespace) -> int:
-    import json
-    from pathlib import Path
-
+    from motion_env.args import write_json
     from motion_env.evaluation.bench import format_results, run_bench
 
     sizes = [int(v) for v in args.batch_sizes.split(",") if v.strip()]
@@ -294,9 +292,7 @@ def _run_bench(args: argparse.Namespace) -> int:
     )  # fmt: skip
     print(format_results(results))
     if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(results, indent=2) + "\n")
-        print(f"wrote {args.json}")
+        write_json(args.json, results)
     return 0
 
 

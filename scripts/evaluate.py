@@ -8,12 +8,11 @@ python scripts/evaluate.py --data data/mocap --model runs/weights --max-clips 32
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-from pathlib import Path
 
 import torch
 
+from motion_env.args import write_json
 from motion_env.evaluation.suite import evaluate_generator, format_results
 from motion_env.generation.generator import MotionGenerator
 
@@ -50,9 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     print(format_results(results))
     if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(results, indent=2) + "\n")
-        print(f"wrote {args.json}")
+        write_json(args.json, results)
     return 0
 
 

@@ -16,12 +16,14 @@ class _Settings:
     steps: int = 10  # training steps
     rate: float = 0.5
     fast: bool = False  # skip the slow part
+    limit: float | None = None  # stop after this share (in %) of the steps
 
 
 def test_parse_dataclass_maps_every_field() -> None:
     assert parse_dataclass(_Settings, []) == _Settings()
-    got = parse_dataclass(_Settings, ["--out", "o", "--steps", "3", "--rate", "2", "--fast"])
-    assert got == _Settings(out="o", steps=3, rate=2.0, fast=True)
+    got = parse_dataclass(_Settings, ["--out", "o", "--steps", "3", "--rate", "2", "--fast", "--limit", "50"])
+    assert got == _Settings(out="o", steps=3, rate=2.0, fast=True, limit=50.0)
+    assert parse_dataclass(_Settings, ["--limit", "none"]).limit is None
     assert parse_dataclass(_Settings, ["--no-fast"]).fast is False
     with pytest.raises(SystemExit):
         parse_dataclass(_Settings, ["--steps", "three"])
@@ -32,11 +34,12 @@ def test_field_comments_become_help(capsys) -> None:
         "out": "output folder",
         "steps": "training steps",
         "fast": "skip the slow part",
+        "limit": "stop after this share (in %) of the steps",
     }
     with pytest.raises(SystemExit):
         parse_dataclass(_Settings, ["--help"], description="what it does")
     out = capsys.readouterr().out
-    assert "what it does" in out and "training steps (default: 10)" in out
+    assert "what it does" in out and "training steps (default: 10)" in out and "(in %)" in out
 
 
 def test_parse_waypoints() -> None:

@@ -17,6 +17,7 @@ import pytest
 import torch
 
 import motion_env
+from motion_env.args import parse_dataclass
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 torch.set_num_threads(1)
@@ -34,7 +35,7 @@ def _load(name: str):
 
 def _run(name: str, out: Path, *flags: str) -> dict:
     module = _load(name)
-    result = module.main(module.parse_args([*COMMON, "--out", str(out), *flags]))
+    result = module.main(parse_dataclass(module.Args, [*COMMON, "--out", str(out), *flags]))
     assert (out / "result.json").is_file()
     assert json.loads((out / "result.json").read_text())["args"]["random_model"] is True
     return result
@@ -94,13 +95,11 @@ def test_goal_reach_her(tmp_path):
 
 
 @pytest.mark.slow
-def test_astar_example_reaches_its_goal_around_the_obstacles_with_the_shipped_model(tmp_path):
-    try:
-        motion_env.MotionGenerator.from_pretrained()
-    except FileNotFoundError as exc:
-        pytest.skip(f"the shipped model is not installed: {exc}")
+def test_astar_example_reaches_its_goal_around_the_obstacles_with_the_shipped_model(
+    tmp_path, pretrained_generator
+):
     module = _load("astar_obstacles")
     flags = ["--video", "gif", "--width", "96", "--height", "64", "--out", str(tmp_path)]
-    result = module.main(module.parse_args(flags))
+    result = module.main(parse_dataclass(module.Args, flags))
     assert result["reached_goal"] and result["final_distance_m"] < 0.75
     assert result["pelvis_inside_obstacle_frames"] == 0 and result["min_obstacle_clearance_m"] > 0.0

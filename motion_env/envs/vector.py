@@ -9,6 +9,7 @@ one generator stream, so a step costs one batched forward pass instead of N.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import fields
 from typing import Any
 
 import numpy as np
@@ -16,17 +17,14 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from motion_env.envs.arena import validate_obstacles
 from motion_env.envs.core import (
-    CharacterBatch,
     EnvConfig,
     check_actions,
     sample_route,
     sample_start,
     validate_start,
-    validate_text_pool,
 )
-from motion_env.envs.waypoints import make_generator, observation_space
+from motion_env.envs.waypoints import build_characters, observation_space
 from motion_env.generation.request import check_text
 from motion_env.motion.skeleton import FPS
 from motion_env.motion.trajectory import validate_waypoints
@@ -37,7 +35,8 @@ _RESET_OPTIONS = ("text", "waypoints", "start")
 class WaypointsVectorEnv(VectorEnv):
     """N Waypoints-v0 characters stepped together through one batched generator stream.
 
-    Arguments are those of :class:`motion_env.envs.WaypointsEnv` plus ``num_envs`` and
+    Arguments are those of :class:`motion_env.envs.WaypointsEnv` (its behaviour settings passed
+    through to :class:`~motion_env.envs.core.EnvConfig`) plus ``num_envs`` and
     ``max_episode_steps`` (truncation is done here, since no ``TimeLimit`` wraps a vector env;
     ``gym.make_vec`` passes the registration's 1000). ``render_mode`` must be None.
 
@@ -63,20 +62,10 @@ class WaypointsVectorEnv(VectorEnv):
         generator: Any | None = None,
         model_path: str | None = None,
         text_pool: Sequence[str] | None = None,
-        action_mode: str = "absolute",
-        frames_per_step: int = 1,
-        arrive_radius: float = 0.5,
-        terminate_on_arrival: bool = True,
         render_mode: str | None = None,
         obstacles: np.ndarray | Sequence | None = None,
-        arena_size: float = 10.0,
-        snap_radius: float = 0.05,
-        progress_weight: float = 1.0,
-        arrival_bonus: float = 1.0,
-        collision_penalty: float = 1.0,
-        invalid_action: str = "raise",
-        random_start: bool = False,
         device: str = "cpu",
+        **config: Any,
     ) -> None:
         if int(num_envs) < 1:
             raise ValueError(f"num_envs must be >= 1, got {num_envs}")
@@ -86,33 +75,24 @@ class WaypointsVectorEnv(VectorEnv):
             raise ValueError(
                 f"WaypointsVectorEnv does not render (render_mode must be None, got {render_mode!r})"
             )
-        self.config = EnvConfig(
-            action_mode=action_mode,
-            frames_per_step=frames_per_step,
-            arrive_radius=arrive_radius,
-            terminate_on_arrival=terminate_on_arrival,
-            arena_size=arena_size,
-            snap_radius=snap_radius,
-            progress_weight=progress_weight,
-            arrival_bonus=arrival_bonus,
-            collision_penalty=collision_penalty,
-            invalid_action=invalid_action,
-            random_start=random_start,
-            trail_length=1,
-        )
+        # The behaviour settings (action_mode, frames_per_step, arrive_radius, rewards, ...) are
+        # WaypointsEnv's, checked once by EnvConfig.
+        unknown = sorted(set(config) - {f.name for f in fields(EnvConfig)} - {"trail_length"})
+        if unknown:
+            raise TypeError(f"WaypointsVectorEnv got unknown arguments {unknown}")
+        self.config = EnvConfig(**config, trail_length=1)
         self.num_envs = int(num_envs)
         self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
         self.render_mode = None
         self.metadata = {**self.metadata, "render_fps": FPS / self.config.frames_per_step}
-        self.text_pool = validate_text_pool(text_pool)
-        self.obstacles = validate_obstacles(obstacles)
-        self.generator = make_generator(generator, model_path, device)
+        self.text_pool, self.obstacles, self.generator, self._batch = build_characters(
+            self.config, text_pool, obstacles, generator, model_path, device
+        )
         bound = np.float32(self.config.action_bound)
         self.single_action_space = spaces.Box(-bound, bound, (2,), np.float32)
         self.single_observation_space = observation_space()
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
-        self._batch = CharacterBatch(self.config, self.obstacles)
         self._options: dict[str, Any] = {}
         self._autoreset = np.zeros(self.num_envs, bool)
         self._steps = np.zeros(self.num_envs, np.int64)

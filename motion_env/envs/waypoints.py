@@ -9,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from motion_env.envs.arena import circles, validate_obstacles
+from motion_env.envs.arena import Obstacle, circles, validate_obstacles
 from motion_env.envs.core import (
     CharacterBatch,
     EnvConfig,
@@ -37,6 +37,21 @@ def make_generator(generator: Any | None, model_path: str | None, device: str) -
     from motion_env.generation.generator import MotionGenerator
 
     return MotionGenerator.from_pretrained(model_path, device=device)
+
+
+def build_characters(
+    config: EnvConfig,
+    text_pool: Sequence[str] | None,
+    obstacles: np.ndarray | Sequence | None,
+    generator: Any | None,
+    model_path: str | None,
+    device: str,
+) -> tuple[tuple[str, ...], list[Obstacle], Any, CharacterBatch]:
+    """What Waypoints-v0 and its vector env are made of, checked once: the caption pool, the
+    obstacles, the generator and the batch of characters it streams."""
+    pool = validate_text_pool(text_pool)
+    checked = validate_obstacles(obstacles)
+    return pool, checked, make_generator(generator, model_path, device), CharacterBatch(config, checked)
 
 
 def observation_space() -> spaces.Dict:
@@ -200,13 +215,12 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.render_size = (int(render_size[0]), int(render_size[1]))
         self._view: Any = None
         self.metadata = {**self.metadata, "render_fps": FPS / self.config.frames_per_step}
-        self.text_pool = validate_text_pool(text_pool)
-        self.obstacles = validate_obstacles(obstacles)
-        self.generator = make_generator(generator, model_path, device)
+        self.text_pool, self.obstacles, self.generator, self._batch = build_characters(
+            self.config, text_pool, obstacles, generator, model_path, device
+        )
         bound = np.float32(self.config.action_bound)
         self.action_space = spaces.Box(-bound, bound, (2,), np.float32)
         self.observation_space = observation_space()
-        self._batch = CharacterBatch(self.config, self.obstacles)
         self._flags = (False, False)
 
     # -- Gymnasium API -------------------------------------------------------------------------

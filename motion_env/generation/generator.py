@@ -52,6 +52,10 @@ __all__ = ["DEFAULT_WEIGHTS", "RANDOM_MODEL", "MotionGenerator", "SamplingConfig
 DEFAULT_WEIGHTS = Path(__file__).resolve().parents[1] / "weights"
 WEIGHT_FILES = {"vqvae": "vqvae.pt", "gpt": "gpt.pt", "controller": "controller.pt"}
 SAMPLING_FILE = "sampling.json"
+# What `gen.<name>` reads from the pipeline (see MotionGenerator.__getattr__).
+PIPELINE_PARTS = frozenset(
+    {"vqvae", "gpt", "controller", "device", "rate", "path_horizon", "text_encoder", "text_encoder_name"}
+)
 # `from_pretrained(RANDOM_MODEL)` gives the untrained test model (:meth:`MotionGenerator.random`).
 RANDOM_MODEL = "random"
 
@@ -100,6 +104,13 @@ class MotionGenerator:
         untrained: True for random weights: every motion's meta says so.
         device: torch device.
         name: where the weights came from (recorded in every motion's meta).
+
+    Attributes:
+        pipeline: the :class:`~motion_env.generation.pipeline.Pipeline` that does the work; its parts
+            read through the generator too (``gen.vqvae``, ``gen.gpt``, ``gen.controller``,
+            ``gen.device``, ``gen.rate``, ``gen.path_horizon``, ``gen.text_encoder``).
+        sampling: token sampling settings (assignable); mean, std: the feature statistics.
+        untrained, name, training_info: what the weights are and how they were trained.
     """
 
     def __init__(
@@ -246,21 +257,12 @@ class MotionGenerator:
         return {"training": info} if info else {}
 
     # ------------------------------------------------------------------ the pipeline's parts
-    @property
-    def vqvae(self) -> VQVAE:
-        return self.pipeline.vqvae
-
-    @property
-    def gpt(self) -> TokenGPT:
-        return self.pipeline.gpt
-
-    @property
-    def controller(self) -> PathController:
-        return self.pipeline.controller
-
-    @property
-    def device(self) -> torch.device:
-        return self.pipeline.device
+    def __getattr__(self, name: str) -> Any:
+        # Read-only views of the pipeline's parts: gen.vqvae, gen.gpt, gen.controller, gen.device,
+        # gen.rate (frames per token), gen.path_horizon, gen.text_encoder, gen.text_encoder_name.
+        if name in PIPELINE_PARTS:
+            return getattr(self.pipeline, name)
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     @property
     def mean(self) -> np.ndarray:
@@ -282,25 +284,6 @@ class MotionGenerator:
         if not isinstance(value, SamplingConfig):
             raise TypeError(f"sampling must be a SamplingConfig, got {type(value).__name__}")
         self.pipeline.sampling = value
-
-    @property
-    def rate(self) -> int:
-        """Frames per motion token."""
-        return self.pipeline.rate
-
-    @property
-    def path_horizon(self) -> int:
-        """Frames of root path a token needs beyond its first frame (its own span and one second)."""
-        return self.pipeline.path_horizon
-
-    @property
-    def text_encoder_name(self) -> str:
-        return self.pipeline.text_encoder_name
-
-    @property
-    def text_encoder(self) -> Any:
-        """The text encoder (loaded on first use)."""
-        return self.pipeline.text_encoder
 
     def encode_text(self, texts: Sequence[str]) -> torch.Tensor:
         """Captions -> (N, text_dim) float32 embeddings on the generator's device."""
@@ -377,7 +360,7 @@ class MotionGenerator:
         p = self.pipeline
         n_tok = math.ceil(req.num_frames / p.rate)
         emb = p.encode_text(req.texts)
-        paths = p.clip_paths(emb, req.routes, req.starts, req.num_frames, req.seed)
+        paths = p.clip_paths(emb, req)
         body = p.decode(p.sample_tokens(emb, paths, n_tok, req.seed))  # (B, n_tok * rate, 263)
         motions = []
         for i, text in enumerate(req.texts):
@@ -409,7 +392,7 @@ class MotionGenerator:
         """
         req = check_batch_request(texts, waypoints, num_frames, seed, starts)
         emb = self.pipeline.encode_text(req.texts)
-        paths = self.pipeline.clip_paths(emb, req.routes, req.starts, req.num_frames, req.seed, snap)
+        paths = self.pipeline.clip_paths(emb, req, snap)
         return paths[:, : req.num_frames]
 
     def _meta(self, seed: int, row: int) -> dict[str, str]:

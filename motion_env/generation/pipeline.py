@@ -39,6 +39,7 @@ from motion_env.generation.recompose import (
     recompose,
     snap_route,
 )
+from motion_env.generation.request import BatchRequest
 from motion_env.models.controller import ControllerState, PathController
 from motion_env.models.gpt import TokenGPT
 from motion_env.models.normalizer import Normalizer
@@ -161,38 +162,23 @@ class Pipeline:
             state = replace(state, hidden=state.hidden + noise_std * noise)
         return state
 
-    def rollout(
-        self,
-        text_emb: torch.Tensor,
-        routes: list[np.ndarray | None],
-        starts: np.ndarray,
-        num_frames: int,
-        seed: int,
-    ) -> np.ndarray:
+    def rollout(self, text_emb: torch.Tensor, req: BatchRequest, num_frames: int) -> np.ndarray:
         """The controller's closed-loop root paths: (B, num_frames, 3) float32, frame 0 = start."""
-        gens = [row_generator(seed, i, CONTROLLER_STREAM) for i in range(len(routes))]
-        state = self.init_controller(text_emb, routes, starts, gens)
+        gens = [row_generator(req.seed, i, CONTROLLER_STREAM) for i in range(len(req.routes))]
+        state = self.init_controller(text_emb, req.routes, req.starts, gens)
         roots, _ = self.controller(state, num_frames - 1)
         return roots.cpu().numpy().astype(np.float32)
 
-    def clip_paths(
-        self,
-        text_emb: torch.Tensor,
-        routes: list[np.ndarray | None],
-        starts: np.ndarray,
-        num_frames: int,
-        seed: int,
-        snap: bool = True,
-    ) -> np.ndarray:
-        """Root paths (B, n_path, 3) for clips of `num_frames`, bent through the routes if `snap`.
+    def clip_paths(self, text_emb: torch.Tensor, req: BatchRequest, snap: bool = True) -> np.ndarray:
+        """Root paths (B, n_path, 3) for clips of ``req.num_frames``, bent through the routes if `snap`.
 
         The path reaches one horizon past the last token's first frame, as in streaming, so the
         last tokens' path features are never cut short.
         """
-        n_path = (math.ceil(num_frames / self.rate) - 1) * self.rate + self.path_horizon + 1
-        roots = self.rollout(text_emb, routes, starts, n_path, seed)
+        n_path = (math.ceil(req.num_frames / self.rate) - 1) * self.rate + self.path_horizon + 1
+        roots = self.rollout(text_emb, req, n_path)
         if snap:
-            roots = np.stack([snap_route(r, w) for r, w in zip(roots, routes, strict=True)])
+            roots = np.stack([snap_route(r, w) for r, w in zip(roots, req.routes, strict=True)])
         return roots
 
     # ------------------------------------------------------------------ 3. tokens

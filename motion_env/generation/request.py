@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from motion_env.motion.checks import check_finite
 from motion_env.motion.trajectory import validate_waypoints
 
 __all__ = [
@@ -71,9 +72,7 @@ def check_starts(starts: Any, batch: int) -> np.ndarray:
         raise ValueError(
             f"starts must have shape ({batch}, 3) (x, z, heading per character), got {arr.shape}"
         )
-    if not np.isfinite(arr).all():
-        rows = np.unique(np.nonzero(~np.isfinite(arr))[0])
-        raise ValueError(f"starts has NaN or infinite values in rows {rows.tolist()}")
+    check_finite(arr, "starts")
     return arr.astype(np.float32)
 
 

@@ -27,6 +27,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from motion_env.motion.checks import check_above, check_at_least
 from motion_env.motion.skeleton import FPS
 from motion_env.motion.trajectory import validate_waypoints
 
@@ -67,16 +68,11 @@ class ControllerConfig:
     h0_noise: float = 0.3
 
     def __post_init__(self) -> None:
-        for name in ("text_dim", "text_proj", "num_slots", "hidden", "mlp"):
-            if int(getattr(self, name)) < 1:
-                raise ValueError(f"ControllerConfig.{name} must be >= 1, got {getattr(self, name)}")
-        for name in ("arrive_radius", "step_scale", "turn_scale", "max_time_to_go"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"ControllerConfig.{name} must be > 0, got {getattr(self, name)}")
+        check_at_least(self, 1, "text_dim", "text_proj", "num_slots", "hidden", "mlp")
+        check_above(self, 0, "arrive_radius", "step_scale", "turn_scale", "max_time_to_go")
         if not 0 < self.seek_rate <= 1:
             raise ValueError(f"ControllerConfig.seek_rate must be in (0, 1], got {self.seek_rate}")
-        if self.h0_noise < 0:
-            raise ValueError(f"ControllerConfig.h0_noise must be >= 0, got {self.h0_noise}")
+        check_at_least(self, 0, "h0_noise")
 
     @property
     def input_dim(self) -> int:

@@ -35,6 +35,7 @@ from torch import nn
 
 from motion_env.models.path_features import D_PATH
 from motion_env.models.sampling import SamplingConfig, sample_tokens
+from motion_env.motion.checks import check_positive_ints
 
 
 @dataclass
@@ -61,10 +62,9 @@ class GPTConfig:
     path_dim: int = D_PATH
 
     def __post_init__(self) -> None:
-        for name in ("vocab_size", "block_size", "n_layer", "n_head", "n_embd", "text_dim", "path_dim"):
-            value = getattr(self, name)
-            if not isinstance(value, int) or value < 1:
-                raise ValueError(f"GPTConfig.{name} must be a positive int, got {value!r}")
+        check_positive_ints(
+            self, "vocab_size", "block_size", "n_layer", "n_head", "n_embd", "text_dim", "path_dim"
+        )
         if self.block_size < 2:
             raise ValueError(
                 f"GPTConfig.block_size must be >= 2 (the window slides by halves), got {self.block_size}"

@@ -24,6 +24,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from motion_env.motion.checks import check_at_least, check_positive_ints
 from motion_env.motion.skeleton import FEATURE_DIM, NUM_JOINTS, RIC
 
 
@@ -56,17 +57,14 @@ class VQVAEConfig:
     velocity_weight: float = 0.5
 
     def __post_init__(self) -> None:
-        for name in ("feature_dim", "width", "code_dim", "codebook_size", "depth", "dilation_growth"):
-            value = getattr(self, name)
-            if not isinstance(value, int) or value < 1:
-                raise ValueError(f"VQVAEConfig.{name} must be a positive int, got {value!r}")
+        check_positive_ints(
+            self, "feature_dim", "width", "code_dim", "codebook_size", "depth", "dilation_growth"
+        )
         if self.rate not in (2, 4):
             raise ValueError(f"VQVAEConfig.rate must be 2 or 4 (frames per token), got {self.rate!r}")
         if not 0.0 < self.ema_decay < 1.0:
             raise ValueError(f"VQVAEConfig.ema_decay must be in (0, 1), got {self.ema_decay!r}")
-        for name in ("commit_weight", "velocity_weight"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"VQVAEConfig.{name} must be >= 0, got {getattr(self, name)!r}")
+        check_at_least(self, 0, "commit_weight", "velocity_weight")
 
     @property
     def num_down(self) -> int:

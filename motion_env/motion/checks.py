@@ -1,6 +1,11 @@
-"""Shape and value checks shared by the motion math (raise ValueError naming the argument)."""
+"""Checks shared across the package: array shapes and values, and the fields of config dataclasses.
+
+Each raises ValueError naming the argument or the field (``VQVAEConfig.width must be ...``).
+"""
 
 from __future__ import annotations
+
+from typing import Any
 
 import numpy as np
 
@@ -24,7 +29,49 @@ def check_joints(joints: np.ndarray, name: str = "joints", min_frames: int = 1) 
         raise ValueError(
             f"{name} must have shape (T, {NUM_JOINTS}, 3) with T >= {min_frames}, got {joints.shape}"
         )
-    if not np.isfinite(joints).all():
-        bad = np.unique(np.nonzero(~np.isfinite(joints))[0])
-        raise ValueError(f"{name} has NaN or infinite values at frames {bad[:10].tolist()}")
+    check_finite(joints, name, "frames")
     return joints.astype(np.float64)
+
+
+def check_finite(values: np.ndarray, name: str, index: str = "rows") -> None:
+    """ValueError naming the first rows (`index`: "rows", "frames", ...) with NaN or infinite values."""
+    if not np.isfinite(values).all():
+        bad = np.unique(np.nonzero(~np.isfinite(values))[0])
+        raise ValueError(f"{name} has NaN or infinite values at {index} {bad[:10].tolist()}")
+
+
+# ----------------------------------------------------------------------------------------------
+# Fields of config dataclasses (called from their __post_init__)
+# ----------------------------------------------------------------------------------------------
+
+
+def check_positive_ints(config: Any, *names: str) -> None:
+    """ValueError unless each named field of `config` is an int >= 1."""
+    for name in names:
+        value = getattr(config, name)
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ValueError(f"{type(config).__name__}.{name} must be a positive int, got {value!r}")
+
+
+def check_at_least(config: Any, low: float, *names: str) -> None:
+    """ValueError unless each named field of `config` is >= `low`."""
+    for name in names:
+        value = getattr(config, name)
+        if not value >= low:
+            raise ValueError(f"{type(config).__name__}.{name} must be >= {low}, got {value!r}")
+
+
+def check_above(config: Any, low: float, *names: str) -> None:
+    """ValueError unless each named field of `config` is > `low`."""
+    for name in names:
+        value = getattr(config, name)
+        if not value > low:
+            raise ValueError(f"{type(config).__name__}.{name} must be > {low}, got {value!r}")
+
+
+def check_fraction(config: Any, *names: str) -> None:
+    """ValueError unless each named field of `config` is in [0, 1]."""
+    for name in names:
+        value = getattr(config, name)
+        if not 0 <= value <= 1:
+            raise ValueError(f"{type(config).__name__}.{name} must be in [0, 1], got {value!r}")

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
+from motion_env.motion.checks import check_finite
 from motion_env.motion.kinematics import heading_from_joints, to_heading_frame
 from motion_env.motion.skeleton import NUM_JOINTS
 
@@ -88,9 +89,7 @@ def validate_root_path(root_path: np.ndarray, name: str = "root_path") -> np.nda
     path = np.asarray(root_path, dtype=np.float32)
     if path.ndim != 2 or path.shape[1] != 3 or path.shape[0] < 1:
         raise ValueError(f"{name} must have shape (T, 3) (x, z, heading) with T >= 1, got {path.shape}")
-    if not np.isfinite(path).all():
-        bad = np.unique(np.nonzero(~np.isfinite(path))[0])
-        raise ValueError(f"{name} has NaN or infinite values at frames {bad[:10].tolist()}")
+    check_finite(path, name, "frames")
     return path
 
 

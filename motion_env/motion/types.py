@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from motion_env.motion.checks import check_finite
 from motion_env.motion.skeleton import FPS, NUM_JOINTS
 
 
@@ -35,9 +36,7 @@ class Motion:
             raise ValueError(
                 f"Motion.joints must have shape (T, {NUM_JOINTS}, 3) with T >= 1, got {tuple(joints.shape)}"
             )
-        if not np.isfinite(joints).all():
-            bad = np.unique(np.nonzero(~np.isfinite(joints))[0])
-            raise ValueError(f"Motion.joints has NaN or infinite values at frames {bad[:10].tolist()}")
+        check_finite(joints, "Motion.joints", "frames")
         if not (np.isfinite(self.fps) and self.fps > 0):
             raise ValueError(f"Motion.fps must be a positive number, got {self.fps!r}")
         self.joints = joints

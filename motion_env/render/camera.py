@@ -15,6 +15,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from motion_env.motion.checks import check_above
+
 
 @dataclass(frozen=True)
 class Camera:
@@ -37,8 +39,7 @@ class Camera:
     look_height: float = 0.8
 
     def __post_init__(self) -> None:
-        if not (self.distance > 0 and self.focal > 0):
-            raise ValueError(f"Camera distance and focal must be positive, got {self}")
+        check_above(self, 0, "distance", "focal")
         if not -89.0 < self.elevation_deg < 89.0:
             raise ValueError(f"Camera elevation_deg must be in (-89, 89), got {self.elevation_deg}")
 

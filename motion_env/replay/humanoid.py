@@ -302,6 +302,16 @@ def _capsule(name: str, a: np.ndarray, b: np.ndarray, radius: float, origin: np.
     return f'<geom name="{name}" class="{cls}" fromto="{_fmt(ends)}" size="{radius:g}"/>'
 
 
+# Limb bodies that are one capsule from one joint to the next: body part -> (start, end) joint
+# (of the body's side).
+_LIMB_SEGMENTS = {
+    "clavicle": ("collar", "shoulder"),
+    "upper_arm": ("shoulder", "elbow"),
+    "thigh": ("hip", "knee"),
+    "shin": ("knee", "ankle"),
+}
+
+
 def _geoms(body: str, pos: np.ndarray, origin: np.ndarray) -> list[str]:
     """Collision/visual geoms of one body (rest positions `pos` in the motion frame)."""
     j = JOINT_INDEX
@@ -330,12 +340,9 @@ def _geoms(body: str, pos: np.ndarray, origin: np.ndarray) -> list[str]:
             f'<geom name="head" class="{cls}" type="sphere" pos="{_fmt(to_mujoco(centre) - origin)}" '
             f'size="{r["head"]:g}"/>',
         ]
-    if part == "clavicle":
-        a, b = pos[j[f"{side}_collar"]], pos[j[f"{side}_shoulder"]]
-        return [_capsule(body, a, b, r["clavicle"], origin, cls)]
-    if part == "upper_arm":
-        a, b = pos[j[f"{side}_shoulder"]], pos[j[f"{side}_elbow"]]
-        return [_capsule(body, a, b, r["upper_arm"], origin, cls)]
+    if part in _LIMB_SEGMENTS:
+        start, end = _LIMB_SEGMENTS[part]
+        return [_capsule(body, pos[j[f"{side}_{start}"]], pos[j[f"{side}_{end}"]], r[part], origin, cls)]
     if part == "forearm":
         a, b = pos[j[f"{side}_elbow"]], pos[j[f"{side}_wrist"]]
         hand_end = b + _HAND_LENGTH * (b - a) / np.linalg.norm(b - a)
@@ -343,12 +350,6 @@ def _geoms(body: str, pos: np.ndarray, origin: np.ndarray) -> list[str]:
             _capsule(body, a, b, r["forearm"], origin, cls),
             _capsule(f"{side}_hand", b, hand_end, r["hand"], origin, cls),
         ]
-    if part == "thigh":
-        a, b = pos[j[f"{side}_hip"]], pos[j[f"{side}_knee"]]
-        return [_capsule(body, a, b, r["thigh"], origin, cls)]
-    if part == "shin":
-        a, b = pos[j[f"{side}_knee"]], pos[j[f"{side}_ankle"]]
-        return [_capsule(body, a, b, r["shin"], origin, cls)]
     if part == "foot":
         return _foot_geoms(side, pos, origin, cls)
     raise ValueError(f"no geometry defined for body {body!r}")

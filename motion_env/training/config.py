@@ -21,6 +21,8 @@ from typing import Any
 
 import torch
 
+from motion_env.motion.checks import check_at_least
+
 _EXPECTED = {bool: "True or False", int: "an integer", float: "a number", str: "a non-empty string"}
 
 
@@ -34,30 +36,6 @@ def _is(kind: type, value: Any) -> bool:
     if kind is str:
         return isinstance(value, str) and bool(value.strip())
     return True
-
-
-def check_at_least(config: Any, low: float, *names: str) -> None:
-    """ValueError unless each named field of `config` is >= `low`."""
-    for name in names:
-        value = getattr(config, name)
-        if not value >= low:
-            raise ValueError(f"{type(config).__name__}.{name} must be >= {low}, got {value!r}")
-
-
-def check_above(config: Any, low: float, *names: str) -> None:
-    """ValueError unless each named field of `config` is > `low`."""
-    for name in names:
-        value = getattr(config, name)
-        if not value > low:
-            raise ValueError(f"{type(config).__name__}.{name} must be > {low}, got {value!r}")
-
-
-def check_fraction(config: Any, *names: str) -> None:
-    """ValueError unless each named field of `config` is in [0, 1]."""
-    for name in names:
-        value = getattr(config, name)
-        if not 0 <= value <= 1:
-            raise ValueError(f"{type(config).__name__}.{name} must be in [0, 1], got {value!r}")
 
 
 @dataclass(kw_only=True)

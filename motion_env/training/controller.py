@@ -33,11 +33,12 @@ from motion_env.models.checkpoint import (
     text_encoder_record,
 )
 from motion_env.models.controller import ControllerConfig, PathController, to_heading_frame_torch
+from motion_env.motion.checks import check_above, check_at_least
 from motion_env.motion.skeleton import FPS
 from motion_env.motion.trajectory import root_path_from_joints, waypoint_errors
 from motion_env.text.encoders import DEFAULT_TEXT_ENCODER, TextEncoder, jitter_embeddings, load_text_encoder
-from motion_env.training.config import TrainConfig, check_above, check_at_least
-from motion_env.training.loop import restore, resume_checkpoint, run_loop, save_training_checkpoint
+from motion_env.training import loop
+from motion_env.training.config import TrainConfig
 
 CHECKPOINT_KIND = "controller"
 # A frame is "still" below this root speed (m/s): its turn target is zero (no spin on the spot).
@@ -328,8 +329,6 @@ class ControllerTrainConfig(TrainConfig):
 
 
 # The name of the controller's settings before each trainer had its TrainConfig
-# (tests/models/test_controller.py still uses it).
-TrainSettings = ControllerTrainConfig
 
 
 def fit(
@@ -367,7 +366,7 @@ def fit(
         parts["loss"] = loss.item()
         return parts
 
-    result = run_loop(
+    result = loop.run_loop(
         CHECKPOINT_KIND, settings, optimizer, train_step, warmup=settings.warmup, start=start_step,
         save=save, evaluate=evaluate, postfix={"loss": ".3f", "wp": ".3f"}, smoothing=0.95,
         on_step=on_step, progress=progress,
@@ -420,17 +419,17 @@ def train_controller(
     model = PathController(model_config or ControllerConfig(text_dim=int(text_encoder.dim))).to(device)
     optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=1e-4)
     start = 0
-    ckpt = resume_checkpoint(out_path, CHECKPOINT_KIND, config.resume, model_config)
+    ckpt = loop.resume_checkpoint(out_path, CHECKPOINT_KIND, config.resume, model_config)
     if ckpt is not None:
         check_text_encoder(ckpt, text_encoder, out_path)
         model = PathController(config_from_dict(ControllerConfig, ckpt["config"])).to(device)
         optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=1e-4)
-        start = restore(ckpt, model, optimizer)
+        start = loop.restore(ckpt, model, optimizer)
         tqdm.write(f"controller: resuming {out_path} at step {start}")
     tqdm.write(f"controller: {model.num_parameters() / 1e6:.2f} M parameters")
 
     def save(step: int, metrics: dict[str, float]) -> None:
-        save_training_checkpoint(
+        loop.save_training_checkpoint(
             out_path, kind=CHECKPOINT_KIND, model=model, optimizer=optimizer, step=step, settings=config,
             metrics=metrics, text_encoder=text_encoder_record(text_encoder),
         )  # fmt: skip

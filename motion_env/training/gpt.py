@@ -28,16 +28,10 @@ from motion_env.models.checkpoint import (
 from motion_env.models.gpt import GPTConfig, TokenGPT
 from motion_env.models.normalizer import Normalizer
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
+from motion_env.motion.checks import check_above, check_at_least, check_fraction
 from motion_env.text.encoders import DEFAULT_TEXT_ENCODER, TextEncoder, jitter_embeddings, load_text_encoder
-from motion_env.training.config import TrainConfig, check_above, check_at_least, check_fraction
-from motion_env.training.loop import (
-    load_normalizer,
-    load_split,
-    restore,
-    resume_checkpoint,
-    run_loop,
-    save_training_checkpoint,
-)
+from motion_env.training import loop
+from motion_env.training.config import TrainConfig
 
 CHECKPOINT_KIND = "gpt"
 
@@ -210,9 +204,9 @@ def train_gpt(
             f"GPTConfig.text_dim={model_config.text_dim} but the text encoder {text_encoder.name} "
             f"is {text_encoder.dim}-d"
         )
-    normalizer = load_normalizer(data_dir)
-    train = _TokenSet(load_split(data_dir, "train"), vq, normalizer, device)
-    val = _TokenSet(load_split(data_dir, "val"), vq, normalizer, device)
+    normalizer = loop.load_normalizer(data_dir)
+    train = _TokenSet(loop.load_split(data_dir, "train"), vq, normalizer, device)
+    val = _TokenSet(loop.load_split(data_dir, "val"), vq, normalizer, device)
     table, caption_row = _embed_captions(text_encoder, [train, val])
 
     torch.manual_seed(config.seed)
@@ -223,17 +217,17 @@ def train_gpt(
         [{"params": decay, "weight_decay": 0.1}, {"params": no_decay, "weight_decay": 0.0}],
         lr=config.lr, betas=(0.9, 0.95),
     )  # fmt: skip
-    ckpt = resume_checkpoint(out_path, CHECKPOINT_KIND, config.resume, model_config)
+    ckpt = loop.resume_checkpoint(out_path, CHECKPOINT_KIND, config.resume, model_config)
     if ckpt is not None:
         check_text_encoder(ckpt, text_encoder, out_path)
-    start = restore(ckpt, model, opt)
+    start = loop.restore(ckpt, model, opt)
     rng = np.random.default_rng([config.seed, start])
     L, B = model_config.block_size, config.batch_size
     n_tokens = np.array([c.shape[0] for c in train.codes])
     weights = n_tokens / n_tokens.sum()  # a clip is drawn in proportion to its length
 
     def save(step: int, metrics: dict[str, float]) -> None:
-        save_training_checkpoint(
+        loop.save_training_checkpoint(
             out_path, kind=CHECKPOINT_KIND, model=model, optimizer=opt, step=step, settings=config,
             metrics=metrics, text_encoder=text_encoder_record(text_encoder),
             vqvae={"path": str(vqvae_path), "step": int(vq_ckpt.get("step", 0))},
@@ -260,23 +254,14 @@ def train_gpt(
         opt.step()
         return {"loss": float(loss.detach())}
 
-    result = run_loop(
+    result = loop.run_loop(
         CHECKPOINT_KIND, config, opt, train_step, warmup=min(100, config.steps // 10 + 1), start=start,
         save=save, evaluate=lambda: evaluate_gpt(model, val, table, caption_row, device),
         postfix={"loss": ".3f"},
     )  # fmt: skip
-    last = result.last
-    if result.done == 0 and ckpt is not None:
-        last = dict(ckpt.get("metrics", {}))
     val_metrics = evaluate_gpt(model, val, table, caption_row, device)
     train_metrics = evaluate_gpt(model, train, table, caption_row, device, max_clips=len(val.codes))
-    metrics = {
-        "step": float(result.step),
-        **last,
-        "seconds_per_step": result.seconds_per_step,
-        **{f"val_{k}": v for k, v in val_metrics.items()},
-        **{f"train_{k}": v for k, v in train_metrics.items()},
-    }
+    metrics = loop.final_metrics(result, ckpt, {"val": val_metrics, "train": train_metrics})
     save(result.step, metrics)
     model.train(False)
     return metrics

@@ -197,3 +197,16 @@ def run_loop(
             break
     bar.close()
     return LoopResult(start + done, done, last, (time.perf_counter() - t0) / max(1, done))
+
+
+def final_metrics(
+    result: LoopResult, ckpt: dict[str, Any] | None, evaluations: dict[str, dict[str, float]]
+) -> dict[str, float]:
+    """The metrics a trainer returns and stores at the end: the last logged loss terms (those of the
+    checkpoint when a resumed run had nothing left to do), the speed, and each evaluation's numbers
+    under its prefix (``{"val": {...}}`` -> ``val_<name>``)."""
+    last = dict(ckpt.get("metrics", {})) if result.done == 0 and ckpt is not None else result.last
+    metrics = {"step": float(result.step), **last, "seconds_per_step": result.seconds_per_step}
+    for prefix, values in evaluations.items():
+        metrics.update({f"{prefix}_{k}": v for k, v in values.items()})
+    return metrics

@@ -18,15 +18,9 @@ import torch
 
 from motion_env.models.normalizer import Normalizer
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
-from motion_env.training.config import TrainConfig, check_above, check_at_least
-from motion_env.training.loop import (
-    load_normalizer,
-    load_split,
-    restore,
-    resume_checkpoint,
-    run_loop,
-    save_training_checkpoint,
-)
+from motion_env.motion.checks import check_above, check_at_least
+from motion_env.training import loop
+from motion_env.training.config import TrainConfig
 
 CHECKPOINT_KIND = "vqvae"
 
@@ -115,11 +109,11 @@ def train_vqvae(
     window, device = config.window, config.device
     if window % model_config.rate or window < model_config.rate:
         raise ValueError(f"window ({window}) must be a positive multiple of rate ({model_config.rate})")
-    normalizer = load_normalizer(data_dir)
-    train = [c for c in load_split(data_dir, "train") if len(c.features) >= window]
+    normalizer = loop.load_normalizer(data_dir)
+    train = [c for c in loop.load_split(data_dir, "train") if len(c.features) >= window]
     if not train:
         raise ValueError(f"{data_dir}: no train clip has at least {window} frames")
-    val = load_split(data_dir, "val")
+    val = loop.load_split(data_dir, "val")
     feats = [torch.from_numpy(normalizer.normalize(c.features)) for c in train]
     lengths = np.array([f.shape[0] - window + 1 for f in feats], dtype=np.float64)
     weights = lengths / lengths.sum()  # every window equally likely
@@ -127,14 +121,14 @@ def train_vqvae(
     torch.manual_seed(config.seed)
     model = VQVAE(model_config).to(device)
     opt = torch.optim.AdamW(model.parameters(), lr=config.lr, betas=(0.9, 0.99), weight_decay=0.0)
-    ckpt = resume_checkpoint(out_path, CHECKPOINT_KIND, config.resume, model_config)
-    start = restore(ckpt, model, opt)
+    ckpt = loop.resume_checkpoint(out_path, CHECKPOINT_KIND, config.resume, model_config)
+    start = loop.restore(ckpt, model, opt)
     rng = np.random.default_rng(
         [config.seed, start]
     )  # resuming at step s draws what a fresh run would not repeat
 
     def save(step: int, metrics: dict[str, float]) -> None:
-        save_training_checkpoint(
+        loop.save_training_checkpoint(
             out_path, kind=CHECKPOINT_KIND, model=model, optimizer=opt, step=step, settings=config,
             metrics=metrics, **normalizer.checkpoint_entries(),
         )  # fmt: skip
@@ -151,21 +145,12 @@ def train_vqvae(
         opt.step()
         return {k: float(v.detach()) for k, v in losses.items()}
 
-    result = run_loop(
+    result = loop.run_loop(
         CHECKPOINT_KIND, config, opt, train_step, warmup=min(200, config.steps // 10 + 1), start=start,
         save=save, evaluate=lambda: evaluate_vqvae(model, val, normalizer, device),
         postfix={"loss": ".4f", "perplexity": ".0f"},
     )  # fmt: skip
-    last = result.last
-    if result.done == 0 and ckpt is not None:
-        last = dict(ckpt.get("metrics", {}))
-    val_metrics = evaluate_vqvae(model, val, normalizer, device)
-    metrics = {
-        "step": float(result.step),
-        **last,
-        "seconds_per_step": result.seconds_per_step,
-        **{f"val_{k}": v for k, v in val_metrics.items()},
-    }
+    metrics = loop.final_metrics(result, ckpt, {"val": evaluate_vqvae(model, val, normalizer, device)})
     save(result.step, metrics)
     model.train(False)
     return metrics
