@@ -140,9 +140,12 @@ def check_actions(
         ((B, 2) float64 clipped actions, (B,) bool valid rows, (B,) bool clipped rows).
     """
     try:
-        arr = np.array(actions, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"action must be numbers of shape ({batch}, 2): {exc}") from exc
+        raw = np.asarray(actions)
+    except ValueError as exc:  # ragged nested lists
+        raise ValueError(f"action must be numbers of shape ({batch}, 2): {exc}") from None
+    if raw.dtype.kind not in "biuf":  # complex parts would be dropped with only numpy's warning
+        raise TypeError(f"action must be real numbers (x, z), got dtype {raw.dtype}: {actions!r}")
+    arr = raw.astype(np.float64)
     if batch == 1 and arr.shape == (2,):
         arr = arr[None]
     if arr.shape != (batch, 2):

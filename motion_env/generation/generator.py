@@ -27,12 +27,10 @@ from motion_env.generation.pipeline import Pipeline
 from motion_env.generation.request import (
     BatchRequest,
     check_batch_request,
-    check_num_frames,
     check_route,
     check_start,
     check_text,
     check_texts,
-    resolve_seed,
 )
 from motion_env.models.checkpoint import check_text_encoder, load_checkpoint, save_checkpoint
 from motion_env.models.controller import ControllerConfig, PathController
@@ -305,6 +303,7 @@ class MotionGenerator:
         num_frames: int = 200,
         seed: int | None = None,
         start: np.ndarray | Sequence[float] | None = None,
+        infeasible: str = "raise",
     ) -> Motion:
         """One motion clip.
 
@@ -312,23 +311,20 @@ class MotionGenerator:
             text: the caption ("a person jogs", "an elderly person walks slowly").
             waypoints: None (follow the caption) or (K, 2)/(K, 3) world x, z and optionally the
                 frame index (20 fps) at which to pass; untimed ones are followed in order.
-            num_frames: T, frames to generate (20 fps).
+            num_frames: T, frames to generate (20 fps), 1 to ``MAX_FRAMES``.
             seed: makes the clip reproducible (None: a fresh random seed, stored in meta).
             start: (x, z, heading) of the first frame; default origin facing +Z.
+            infeasible: timed waypoints that ask for more than ``MAX_SPEED`` raise a ValueError
+                ("raise"), or are retimed to the fastest feasible frame with a warning ("warn").
 
         Returns:
             Motion with joints (T, 22, 3) float32 world metres, fps 20, the caption, the waypoints
             and meta (seed, model).
         """
-        starts = np.zeros((1, 3), np.float32) if start is None else check_start(start)[None]
-        req = BatchRequest(
-            [check_text(text)],
-            [check_route(waypoints)],
-            starts,
-            check_num_frames(num_frames),
-            resolve_seed(seed),
-        )
-        return self._clips(req)[0]
+        check_text(text)
+        starts = None if start is None else check_start(start)[None]
+        route = [check_route(waypoints)]
+        return self._clips(check_batch_request([text], route, num_frames, seed, starts, infeasible))[0]
 
     @torch.no_grad()
     def generate_batch(
@@ -338,6 +334,7 @@ class MotionGenerator:
         num_frames: int = 200,
         seed: int | None = None,
         starts: np.ndarray | None = None,
+        infeasible: str = "raise",
     ) -> list[Motion]:
         """B clips at once (one batched pass through each model).
 
@@ -349,11 +346,12 @@ class MotionGenerator:
             seed: as in :meth:`generate`; character b draws from generators seeded by (seed, b),
                 so row 0 equals ``generate(texts[0], ..., seed=seed)``.
             starts: (B, 3) x, z, heading per character.
+            infeasible: as in :meth:`generate`.
 
         Returns:
             B :class:`Motion` clips of `num_frames` frames.
         """
-        return self._clips(check_batch_request(texts, waypoints, num_frames, seed, starts))
+        return self._clips(check_batch_request(texts, waypoints, num_frames, seed, starts, infeasible))
 
     def _clips(self, req: BatchRequest) -> list[Motion]:
         """Every stage of the pipeline, once over whole clips."""
@@ -379,6 +377,7 @@ class MotionGenerator:
         seed: int | None = None,
         starts: np.ndarray | None = None,
         snap: bool = True,
+        infeasible: str = "raise",
     ) -> np.ndarray:
         """The root paths that :meth:`generate_batch` puts the bodies on (same arguments, same seed).
 
@@ -390,7 +389,7 @@ class MotionGenerator:
             (B, num_frames, 3) float32 x, z, heading (before the heading is turned to the
             direction of travel).
         """
-        req = check_batch_request(texts, waypoints, num_frames, seed, starts)
+        req = check_batch_request(texts, waypoints, num_frames, seed, starts, infeasible)
         emb = self.pipeline.encode_text(req.texts)
         paths = self.pipeline.clip_paths(emb, req, snap)
         return paths[:, : req.num_frames]
@@ -413,6 +412,7 @@ class MotionGenerator:
         waypoints: Any = None,
         starts: np.ndarray | None = None,
         seed: int | None = None,
+        infeasible: str = "raise",
     ) -> MotionStream:
         """A batch of characters generated frame by frame (see :class:`MotionStream`).
 
@@ -422,7 +422,8 @@ class MotionGenerator:
                 frame indices of each character's episode.
             starts: (B, 3) x, z, heading.
             seed: as in :meth:`generate_batch`.
+            infeasible: as in :meth:`generate`, for these routes and those given later.
         """
         from motion_env.generation.streaming import MotionStream
 
-        return MotionStream(self.pipeline, texts, waypoints, starts, seed)
+        return MotionStream(self.pipeline, texts, waypoints, starts, seed, infeasible)

@@ -3,8 +3,10 @@
 A request, already checked (:mod:`motion_env.generation.request`), goes through:
 
 1. **text**: the caption becomes an embedding (:meth:`Pipeline.encode_text`, encoder loaded lazily);
-2. **root path**: the path controller (:mod:`motion_env.models.controller`) rolls out x, z,
-   heading frame by frame, closed loop, from the caption and the waypoints
+2. **root path**: the route is planned (:mod:`motion_env.generation.route`: times for untimed
+   waypoints before a timed one, long untimed legs split), then the path controller
+   (:mod:`motion_env.models.controller`) rolls out x, z, heading frame by frame, closed loop, from
+   the caption and the waypoints
    (:meth:`Pipeline.init_controller`, :meth:`Pipeline.rollout`); the path is bent exactly through
    the waypoints it should pass (:mod:`motion_env.generation.recompose`);
 3. **tokens**: per-token path features (:mod:`motion_env.models.path_features`) and the caption
@@ -40,6 +42,7 @@ from motion_env.generation.recompose import (
     snap_route,
 )
 from motion_env.generation.request import BatchRequest
+from motion_env.generation.route import plan_route
 from motion_env.models.controller import ControllerState, PathController
 from motion_env.models.gpt import TokenGPT
 from motion_env.models.normalizer import Normalizer
@@ -172,13 +175,15 @@ class Pipeline:
     def clip_paths(self, text_emb: torch.Tensor, req: BatchRequest, snap: bool = True) -> np.ndarray:
         """Root paths (B, n_path, 3) for clips of ``req.num_frames``, bent through the routes if `snap`.
 
-        The path reaches one horizon past the last token's first frame, as in streaming, so the
-        last tokens' path features are never cut short.
+        The routes are planned first (:func:`~motion_env.generation.route.plan_route`). The path
+        reaches one horizon past the last token's first frame, as in streaming, so the last
+        tokens' path features are never cut short.
         """
         n_path = (math.ceil(req.num_frames / self.rate) - 1) * self.rate + self.path_horizon + 1
-        roots = self.rollout(text_emb, req, n_path)
+        routes = [plan_route(r, start[:2]) for r, start in zip(req.routes, req.starts, strict=True)]
+        roots = self.rollout(text_emb, replace(req, routes=routes), n_path)
         if snap:
-            roots = np.stack([snap_route(r, w) for r, w in zip(roots, req.routes, strict=True)])
+            roots = np.stack([snap_route(r, w) for r, w in zip(roots, routes, strict=True)])
         return roots
 
     # ------------------------------------------------------------------ 3. tokens

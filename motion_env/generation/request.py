@@ -3,10 +3,24 @@
 Every public entry point of the generator (whole clips, the stream, the environments through the
 stream) passes its arguments through these functions and hands the validated values inward; the
 stages of :mod:`motion_env.generation.pipeline` trust them.
+
+Bounds (``docs/conventions.md``, "Limits"):
+
+- a clip has 1 to :data:`MAX_FRAMES` frames (the cost of a request grows with what it asks);
+- waypoint and start coordinates lie within :data:`~motion_env.motion.trajectory.MAX_COORDINATE`
+  metres of the origin (float32 keeps millimetres there);
+- a seed is an integer in [0, 2**64);
+- timed waypoints must be reachable: the speed they ask for (along the route, from the start or
+  the previous timed waypoint) is at most :data:`MAX_SPEED`. An impossible request raises a
+  ValueError naming the waypoint and the speed (times are frames at 20 fps: seconds given as
+  frames are the usual cause); with ``infeasible="warn"`` it is retimed to the fastest feasible
+  timing instead, with a warning that says which waypoint moved from which frame to which.
 """
 
 from __future__ import annotations
 
+import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -14,11 +28,25 @@ from typing import Any
 import numpy as np
 
 from motion_env.motion.checks import check_finite
-from motion_env.motion.trajectory import validate_waypoints
+from motion_env.motion.skeleton import FPS
+from motion_env.motion.trajectory import MAX_COORDINATE, validate_waypoints
+
+MAX_FRAMES = 12_000
+"""The longest clip a request may ask for: 10 minutes at 20 fps."""
+MAX_SPEED = 8.0
+"""Metres per second: the fastest a timed route may ask the pelvis to go (a sprint; the shipped
+model runs at up to about 3.5 m/s, so faster routes are followed with sliding feet)."""
+MAX_SEED = 2**64
+INFEASIBLE_MODES = ("raise", "warn")
 
 __all__ = [
+    "INFEASIBLE_MODES",
+    "MAX_FRAMES",
+    "MAX_SEED",
+    "MAX_SPEED",
     "BatchRequest",
     "check_batch_request",
+    "check_feasible",
     "check_num_frames",
     "check_route",
     "check_start",
@@ -48,31 +76,58 @@ def check_texts(texts: Sequence[str]) -> list[str]:
 
 
 def check_num_frames(num_frames: Any) -> int:
-    if isinstance(num_frames, bool) or not float(num_frames).is_integer():
+    """A clip length: an integer number of frames in [1, MAX_FRAMES]."""
+    if isinstance(num_frames, bool) or not isinstance(num_frames, int | float | np.integer | np.floating):
+        raise TypeError(f"num_frames must be a whole number of frames, got {num_frames!r}")
+    if not (math.isfinite(num_frames) and float(num_frames).is_integer()):
         raise ValueError(f"num_frames must be a whole number of frames, got {num_frames!r}")
-    if int(num_frames) < 1:
-        raise ValueError(f"num_frames must be >= 1, got {num_frames}")
+    if not 1 <= int(num_frames) <= MAX_FRAMES:
+        raise ValueError(
+            f"num_frames must be between 1 and {MAX_FRAMES} ({MAX_FRAMES // FPS // 60} minutes at "
+            f"{FPS} fps), got {int(num_frames)}"
+        )
     return int(num_frames)
 
 
 def check_start(start: Any, what: str = "start") -> np.ndarray:
-    arr = np.asarray(start, dtype=np.float64)
+    """(x, z, heading) of a first frame -> (3,) float32; finite, x and z within MAX_COORDINATE."""
+    try:
+        arr = np.asarray(start, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be three numbers (x, z, heading), got {start!r}") from None
     if arr.shape != (3,):
         raise ValueError(f"{what} must be (x, z, heading), shape (3,), got shape {arr.shape}")
     if not np.isfinite(arr).all():
         raise ValueError(f"{what} must be finite, got {arr.tolist()}")
+    _check_range(arr[None, :2], what)
     return arr.astype(np.float32)
 
 
+def _check_range(xz: np.ndarray, what: str) -> None:
+    far = np.nonzero(np.abs(xz).max(axis=-1) > MAX_COORDINATE)[0]
+    if len(far):
+        raise ValueError(
+            f"{what}: x and z must lie within {MAX_COORDINATE:g} m of the origin, "
+            f"rows {far[:10].tolist()} do not (largest {np.abs(xz).max():.4g} m)"
+        )
+
+
 def check_starts(starts: Any, batch: int) -> np.ndarray:
+    """None (every character at the origin facing +Z) or (B, 3) x, z, heading -> (B, 3) float32."""
     if starts is None:
         return np.zeros((batch, 3), np.float32)
-    arr = np.asarray(starts, dtype=np.float64)
+    try:
+        arr = np.asarray(starts, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"starts must be numbers, shape ({batch}, 3) (x, z, heading per character)"
+        ) from None
     if arr.shape != (batch, 3):
         raise ValueError(
             f"starts must have shape ({batch}, 3) (x, z, heading per character), got {arr.shape}"
         )
     check_finite(arr, "starts")
+    _check_range(arr[:, :2], "starts")
     return arr.astype(np.float32)
 
 
@@ -112,10 +167,14 @@ def per_row_waypoints(waypoints: Any, batch: int) -> list[np.ndarray | None]:
 
 
 def resolve_seed(seed: int | None) -> int:
+    """None (a fresh random seed) or an integer in [0, 2**64) -> the seed."""
     if seed is None:
         return int(np.random.SeedSequence().generate_state(1, dtype=np.uint64)[0] >> np.uint64(1))
-    if isinstance(seed, bool) or int(seed) != seed:
-        raise ValueError(f"seed must be an integer or None, got {seed!r}")
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
+        if not (isinstance(seed, float | np.floating) and math.isfinite(seed) and float(seed).is_integer()):
+            raise TypeError(f"seed must be an integer or None, got {seed!r}")
+    if not 0 <= int(seed) < MAX_SEED:
+        raise ValueError(f"seed must be in [0, 2**64), got {int(seed)}")
     return int(seed)
 
 
@@ -124,15 +183,86 @@ def check_route(waypoints: Any) -> np.ndarray | None:
     return None if waypoints is None else validate_waypoints(waypoints)
 
 
+def check_feasible(
+    route: np.ndarray | None,
+    start_xz: np.ndarray,
+    infeasible: str = "raise",
+    first_frame: int = 0,
+    what: str = "waypoints",
+) -> np.ndarray | None:
+    """Check that the timed waypoints of a route ask for a speed a person can reach.
+
+    Between the start (at `first_frame`) or the previous timed waypoint and each timed waypoint,
+    the distance along the route (through the untimed waypoints in between) over the time there
+    must not ask for more than MAX_SPEED. Timed waypoints before `first_frame` (already passed)
+    are not checked.
+
+    Args:
+        route: (K, 3) checked waypoints (NaN time = untimed) or None.
+        start_xz: (2,) where the pelvis is at `first_frame`.
+        infeasible: "raise" (ValueError) or "warn" (the waypoint is retimed to the fastest
+            feasible frame, later ones keep their order, and a UserWarning says what moved).
+        first_frame: the episode frame of `start_xz` (0 for a new clip).
+        what: the argument's name in messages.
+
+    Returns:
+        The route, retimed where needed (a copy), or None.
+    """
+    if infeasible not in INFEASIBLE_MODES:
+        raise ValueError(f"infeasible must be one of {INFEASIBLE_MODES}, got {infeasible!r}")
+    if route is None:
+        return None
+    out = route.copy()
+    anchor_xz, anchor_t, travelled = np.asarray(start_xz, np.float64)[:2], float(first_frame), 0.0
+    prev_xz = anchor_xz
+    for k, (x, z, t) in enumerate(out):
+        travelled += float(np.hypot(x - prev_xz[0], z - prev_xz[1]))
+        prev_xz = np.array([x, z], np.float64)
+        if np.isnan(t) or t < first_frame:
+            continue
+        seconds = (t - anchor_t) / FPS
+        speed = math.inf if seconds <= 0 else travelled / seconds
+        if speed > MAX_SPEED and travelled > 0.05:
+            fastest = anchor_t + math.ceil(travelled / MAX_SPEED * FPS)
+            message = (
+                f"{what}, row {k} (x={x:g}, z={z:g}, frame {route[k, 2]:g}) asks for {speed:.3g} m/s over "
+                f"{travelled:.3g} m in {seconds:.3g} s; a person manages at most {MAX_SPEED:g} m/s. "
+                f"Times are frame indices at {FPS} fps (seconds given as frames are the usual cause)"
+            )
+            if infeasible == "raise":
+                raise ValueError(message + "; pass infeasible='warn' for a best effort.")
+            warnings.warn(f"{message}: retimed to frame {fastest}.", UserWarning, stacklevel=4)
+            out[k:, 2] += fastest - t  # later times keep their intervals (NaN stays NaN)
+            t = float(out[k, 2])
+        anchor_t, travelled = float(t), 0.0
+    return out
+
+
+def warn_past_the_end(route: np.ndarray | None, num_frames: int, what: str = "waypoints") -> None:
+    """Warn about timed waypoints after a clip's last frame: the clip ends before they are reached."""
+    if route is None:
+        return
+    late = np.nonzero(~np.isnan(route[:, 2]) & (route[:, 2] > num_frames - 1))[0]
+    if len(late):
+        k = int(late[0])
+        warnings.warn(
+            f"{what}, row {k}, is timed at frame {route[k, 2]:g}, after the clip's last frame "
+            f"{num_frames - 1}: the clip ends before it is reached (ask for more frames, or times are "
+            f"frames at {FPS} fps)",
+            UserWarning,
+            stacklevel=4,
+        )
+
+
 @dataclass(frozen=True)
 class BatchRequest:
     """A validated request for B characters.
 
     Attributes:
         texts: B stripped, non-empty captions.
-        routes: B entries, each None or a (K, 3) float32 route (NaN time = untimed).
+        routes: B entries, each None or a (K, 3) float32 route (NaN time = untimed), feasible.
         starts: (B, 3) float32 x, z, heading of frame 0.
-        num_frames: frames per clip (>= 1).
+        num_frames: frames per clip (1 to MAX_FRAMES).
         seed: the resolved seed (a fresh one when the caller gave None).
     """
 
@@ -144,14 +274,20 @@ class BatchRequest:
 
 
 def check_batch_request(
-    texts: Sequence[str], waypoints: Any, num_frames: Any, seed: int | None, starts: Any
+    texts: Sequence[str],
+    waypoints: Any,
+    num_frames: Any,
+    seed: int | None,
+    starts: Any,
+    infeasible: str = "raise",
 ) -> BatchRequest:
-    """Check every argument of a batch request once and return the validated values."""
+    """Check every argument of a batch request once and return the validated values (no model needed)."""
     texts = check_texts(texts)
-    return BatchRequest(
-        texts=texts,
-        routes=per_row_waypoints(waypoints, len(texts)),
-        starts=check_starts(starts, len(texts)),
-        num_frames=check_num_frames(num_frames),
-        seed=resolve_seed(seed),
-    )
+    num_frames = check_num_frames(num_frames)
+    starts_arr = check_starts(starts, len(texts))
+    routes = per_row_waypoints(waypoints, len(texts))
+    for i, route in enumerate(routes):
+        what = "waypoints" if len(routes) == 1 else f"waypoints of character {i}"
+        routes[i] = check_feasible(route, starts_arr[i, :2], infeasible, what=what)
+        warn_past_the_end(routes[i], num_frames, what)
+    return BatchRequest(texts, routes, starts_arr, num_frames, resolve_seed(seed))

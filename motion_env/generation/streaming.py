@@ -34,6 +34,7 @@ from motion_env.generation.feet import FootPinner
 from motion_env.generation.pipeline import CONTROLLER_STREAM, TOKEN_STREAM, Pipeline, row_generator
 from motion_env.generation.recompose import route_anchors, spread_residuals
 from motion_env.generation.request import (
+    check_feasible,
     check_route,
     check_start,
     check_starts,
@@ -42,6 +43,7 @@ from motion_env.generation.request import (
     per_row_waypoints,
     resolve_seed,
 )
+from motion_env.generation.route import plan_route
 from motion_env.models.controller import ControllerState
 from motion_env.models.path_features import D_PATH, token_path_features
 from motion_env.models.sampling import sample_tokens
@@ -105,13 +107,23 @@ class MotionStream:
         waypoints: Any = None,
         starts: np.ndarray | None = None,
         seed: int | None = None,
+        infeasible: str = "raise",
     ) -> None:
         g = self._pipe = pipeline
+        if isinstance(texts, str):
+            texts = [texts]  # one character
         texts = check_texts(texts)
         b = self.batch_size = len(texts)
         self._texts = list(texts)
-        self._routes = per_row_waypoints(waypoints, b)
         start_arr = check_starts(starts, b)
+        self.infeasible = infeasible
+        self._routes = [  # planned routes (generation.route): what the controller and snapping see
+            plan_route(
+                check_feasible(route, start_arr[i, :2], infeasible, what=f"waypoints of character {i}"),
+                start_arr[i, :2],
+            )
+            for i, route in enumerate(per_row_waypoints(waypoints, b))
+        ]
         self.seed = resolve_seed(seed)
         self._ctrl_gens = [row_generator(self.seed, i, CONTROLLER_STREAM) for i in range(b)]
         self._tok_gens = [row_generator(self.seed, i, TOKEN_STREAM) for i in range(b)]
@@ -200,7 +212,10 @@ class MotionStream:
         """
         route = check_route(waypoints)
         for i in self._rows(index):
-            self._routes[i] = None if route is None else route.copy()
+            # Feasible from where the character is now (times are frames of its episode).
+            where = self._root[i, :2]
+            frame = int(self._emitted[i])
+            self._routes[i] = plan_route(check_feasible(route, where, self.infeasible, frame), where, frame)
             self._dirty[i] = self._route_changed[i] = True
 
     def reset(
@@ -213,8 +228,10 @@ class MotionStream:
         """Start a new episode for one character (frame 0 at `start`); the others go on."""
         (i,) = self._rows(index)
         text = check_text(text)
-        route = check_route(waypoints)
         start_arr = np.zeros(3, np.float32) if start is None else check_start(start)
+        route = plan_route(
+            check_feasible(check_route(waypoints), start_arr[:2], self.infeasible), start_arr[:2]
+        )
         g = self._pipe
         emb = g.encode_text([text])
         sub = g.init_controller(emb, [route], start_arr[None], [self._ctrl_gens[i]])

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from motion_env.motion.checks import EPS, check_joints
+from motion_env.motion.checks import EPS, check_finite, check_joints
 from motion_env.motion.kinematics import chain_local_rotations, heading_from_joints, retarget, rotate_y
 from motion_env.motion.rotations import qbetween, qinv, qmul, qrot, quat_to_rot6d
 from motion_env.motion.skeleton import (
@@ -168,6 +168,7 @@ def features_to_joints(features: np.ndarray | torch.Tensor) -> np.ndarray | torc
         return features_to_joints_torch(features)
     features = np.asarray(features, dtype=np.float64)
     _check_features(features)
+    check_finite(features.reshape(-1, FEATURE_DIM), "features", "frames")
     heading, root = recover_root(features)
     ric = features[..., RIC_SLICE].reshape(features.shape[:-1] + (NUM_JOINTS - 1, 3))
     joints = rotate_y(ric, heading[..., None])

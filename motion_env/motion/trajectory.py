@@ -19,6 +19,9 @@ from motion_env.motion.checks import check_finite
 from motion_env.motion.kinematics import heading_from_joints, to_heading_frame
 from motion_env.motion.skeleton import NUM_JOINTS
 
+MAX_COORDINATE = 10_000.0
+"""Metres: waypoints (and starts) lie within this of the origin in x and z; float32 keeps about a
+millimetre there, and a skeleton placed much farther away loses its shape."""
 # Gaussian sigma (frames) that takes the step-by-step sway (hips and shoulders twist with each
 # stride) out of the heading of a root path while keeping turns sharp.
 HEADING_SMOOTH_SIGMA = 5.0
@@ -28,6 +31,7 @@ GAIT_SMOOTH_SIGMA = 6.0
 
 __all__ = [
     "GAIT_SMOOTH_SIGMA",
+    "MAX_COORDINATE",
     "HEADING_SMOOTH_SIGMA",
     "gait_free_path",
     "relative_waypoints",
@@ -116,6 +120,12 @@ def validate_waypoints(waypoints: np.ndarray | list) -> np.ndarray:
     if not np.isfinite(wp[:, :2]).all():
         bad = np.unique(np.nonzero(~np.isfinite(wp[:, :2]))[0])
         raise ValueError(f"waypoints have NaN or infinite x/z at rows {bad[:10].tolist()}")
+    far = np.nonzero(np.abs(wp[:, :2]).max(axis=1) > MAX_COORDINATE)[0]
+    if len(far):
+        raise ValueError(
+            f"waypoints must lie within {MAX_COORDINATE:g} m of the origin in x and z, rows "
+            f"{far[:10].tolist()} do not (largest {np.abs(wp[:, :2]).max():.4g} m)"
+        )
     if wp.shape[1] == 2:
         wp = np.concatenate([wp, np.full((wp.shape[0], 1), np.nan)], axis=1)
     times = wp[:, 2]

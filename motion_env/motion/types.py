@@ -90,13 +90,38 @@ class Motion:
         with data:
             if "joints" not in data:
                 raise ValueError(f"{path}: no 'joints' array (keys: {sorted(data.keys())})")
-            try:
-                return cls(
-                    joints=data["joints"],
-                    fps=float(data["fps"]) if "fps" in data else FPS,
-                    text=str(data["text"]) if "text" in data else None,
-                    waypoints=data["waypoints"] if "waypoints" in data else None,
-                    meta=json.loads(str(data["meta"])) if "meta" in data else {},
-                )
-            except ValueError as exc:
-                raise ValueError(f"{path}: {exc}") from exc
+            fields = {
+                name: data[name] for name in ("joints", "fps", "text", "waypoints", "meta") if name in data
+            }
+        try:
+            return cls(
+                joints=fields["joints"],
+                fps=_scalar(fields["fps"], "fps") if "fps" in fields else FPS,
+                text=_text(fields["text"], "text") if "text" in fields else None,
+                waypoints=fields.get("waypoints"),
+                meta=_meta(fields["meta"]) if "meta" in fields else {},
+            )
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{path}: {exc}") from exc
+
+
+def _scalar(value: np.ndarray, name: str) -> float:
+    if value.shape not in ((), (1,)) or value.dtype.kind not in "iuf":
+        raise ValueError(f"field {name!r} must be one number, got {value.dtype} array of shape {value.shape}")
+    return float(value.reshape(()))
+
+
+def _text(value: np.ndarray, name: str) -> str:
+    if value.shape != () or value.dtype.kind != "U":
+        raise ValueError(f"field {name!r} must be one string, got {value.dtype} array of shape {value.shape}")
+    return str(value)
+
+
+def _meta(value: np.ndarray) -> dict[str, str]:
+    try:
+        meta = json.loads(_text(value, "meta"))
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"field 'meta' must be a JSON object of strings ({exc})") from None
+    if not isinstance(meta, dict):
+        raise ValueError(f"field 'meta' must be a JSON object of strings, got {type(meta).__name__}")
+    return meta
