@@ -83,7 +83,7 @@ def main(args: Args) -> dict:
         device="cpu",
         verbose=0,
     )
-    model.learn(total_timesteps=args.total_timesteps)
+    model.learn(total_timesteps=args.total_timesteps, progress_bar=True)  # minutes of training: show them
     model.save(out / "sac_her_goal_reach.zip")
     env.close()
 

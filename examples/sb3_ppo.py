@@ -68,7 +68,7 @@ def main(args: Args) -> dict:
     env.reset(seed=args.seed)
     model = sb3.PPO("MlpPolicy", env, n_steps=args.n_steps, batch_size=args.batch_size,
                 learning_rate=args.learning_rate, seed=args.seed, device="cpu", verbose=0)  # fmt: skip
-    model.learn(total_timesteps=args.total_timesteps)
+    model.learn(total_timesteps=args.total_timesteps, progress_bar=True)  # minutes of training: show them
     model.save(out / "ppo_waypoints.zip")
     env.close()
 
