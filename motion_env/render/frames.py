@@ -11,6 +11,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from motion_env.render.camera import Camera
+from motion_env.render.scene import as_xz, check_size
 from motion_env.render.skeleton import SkeletonRenderer
 
 _RENDERERS: dict[tuple[int, int, Camera], SkeletonRenderer] = {}
@@ -50,8 +51,16 @@ def render_frame(
 
     Returns:
         (height, width, 3) uint8 RGB image.
+
+    Raises:
+        ValueError: naming the argument: joints not (22, 3) or with NaN or infinite values,
+            points of `path`, `target`, `waypoints`, `obstacles` or `center` that are not finite,
+            width or height not an int of at least 64 pixels.
     """
-    key = (int(width), int(height), camera or Camera())
+    width, height = check_size(width, height)
+    if camera is not None and not isinstance(camera, Camera):
+        raise TypeError(f"camera must be a motion_env.render.Camera, got {type(camera).__name__}")
+    key = (width, height, camera or Camera())
     renderer = _RENDERERS.get(key)
     if renderer is None:
         if len(_RENDERERS) >= 8:  # a figure per size is a few MB: keep only recent sizes
@@ -60,7 +69,7 @@ def render_frame(
     return renderer.draw(
         joints,
         center=center,
-        trail=path,
+        trail=as_xz(path, "path"),  # the renderer calls it the trail: check it under its name here
         waypoints=waypoints,
         target=target,
         obstacles=obstacles,

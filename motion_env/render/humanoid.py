@@ -123,7 +123,10 @@ def render_humanoid_video(
             b = max(a + 1, int((t + 1) / m.num_frames * width))
             timeline[:, a:b] = (220, 30, 30)
     labels: dict[str, np.ndarray] = {}
-    verdict = "plausible" if report["plausible"] else "not plausible: " + ", ".join(report["failed"])
+    if not report.get("judged", True):
+        verdict = "too short to judge"
+    else:
+        verdict = "plausible" if report["plausible"] else "not plausible: " + ", ".join(report["failed"])
 
     fps = m.fps
     writer = VideoWriter(path, fps)

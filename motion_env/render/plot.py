@@ -11,6 +11,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
+from motion_env.motion.checks import check_joints
 from motion_env.motion.kinematics import heading_from_joints
 from motion_env.motion.types import Motion
 from motion_env.render.scene import (
@@ -21,7 +22,9 @@ from motion_env.render.scene import (
     as_waypoints,
     hex_rgb,
     obstacle_extent,
+    waypoint_time,
 )
+from motion_env.render.video import check_fps
 
 
 def plot_path(
@@ -37,7 +40,8 @@ def plot_path(
     +X points to the left so that the picture is a true view from above (a character walking up
     the page that turns to its left turns to the left of the page). Each path gets a start dot,
     an end square and a facing arrow every second; waypoints are numbered rings (timed ones say
-    their time, and a dotted line joins each to where the pelvis was at that time).
+    their frame and its time in seconds, "f40 (2.0 s)", and a dotted line joins each to where the
+    pelvis was at that frame).
 
     Args:
         motion_or_motions: one :class:`Motion` or several (drawn in different colours).
@@ -48,6 +52,11 @@ def plot_path(
 
     Returns:
         The path written.
+
+    Raises:
+        ValueError: naming the argument: a path that is not a .png, no motion, joints with NaN
+            or infinite values (the frames), a rate not > 0, bad waypoints or obstacles.
+        TypeError: something other than a :class:`Motion` among the motions.
     """
     path = Path(path)
     if path.suffix.lower() != ".png":
@@ -55,6 +64,12 @@ def plot_path(
     motions = [motion_or_motions] if isinstance(motion_or_motions, Motion) else list(motion_or_motions)
     if not motions:
         raise ValueError("plot_path needs at least one motion")
+    for n, m in enumerate(motions):
+        name = "motion_or_motions" + ("" if isinstance(motion_or_motions, Motion) else f"[{n}]")
+        if not isinstance(m, Motion):
+            raise TypeError(f"{name} must be a motion_env.Motion, got {type(m).__name__}")
+        check_joints(m.joints, f"{name}.joints")  # it may have changed since it was made
+        check_fps(m.fps, f"{name}.fps")
     if waypoints is None:
         waypoints = next((m.waypoints for m in motions if m.waypoints is not None), None)
     wps, obs = as_waypoints(waypoints), as_obstacles(obstacles)
@@ -99,7 +114,7 @@ def plot_path(
                 ax.annotate(str(k + 1), (x, z), ha="center", va="center", fontsize=7, color=WAYPOINT_COLOR,
                             fontweight="bold", zorder=7)  # fmt: skip
                 if not np.isnan(t):
-                    ax.annotate(f"t={t / motions[0].fps:.1f}s", (x, z), xytext=(9, 9),
+                    ax.annotate(waypoint_time(t, motions[0].fps), (x, z), xytext=(9, 9),
                                 textcoords="offset points", fontsize=8, color=WAYPOINT_COLOR)  # fmt: skip
     if obs is not None:
         for x, z, r in obs:

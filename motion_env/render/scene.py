@@ -11,6 +11,7 @@ character faces +Z at heading 0 and its left is +X. Floor points are given as (x
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -30,11 +31,20 @@ PASSED_COLOR = "#adb5bd"
 
 MAX_LABELLED_WAYPOINTS = 30  # more waypoints than this are a dense trajectory: draw a line
 RING_SEGMENTS = 24
+MIN_SIZE = 64  # pixels: the smallest stick-figure picture
 
 
 def hex_rgb(color: str) -> np.ndarray:
     """'#rrggbb' -> (3,) floats in [0, 1]."""
     return np.array([int(color[i : i + 2], 16) / 255 for i in (1, 3, 5)])
+
+
+def check_size(width: Any, height: Any, minimum: int = MIN_SIZE) -> tuple[int, int]:
+    """(width, height) if each is an int of at least `minimum` pixels, else ValueError naming it."""
+    for name, value in (("width", width), ("height", height)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+            raise ValueError(f"{name} must be an int of at least {minimum} pixels, got {value!r}")
+    return int(width), int(height)
 
 
 def as_joints(joints: np.ndarray, what: str = "joints") -> np.ndarray:
@@ -70,7 +80,19 @@ def as_waypoints(waypoints: np.ndarray | Sequence | None) -> np.ndarray | None:
         raise ValueError("waypoints have NaN or infinite coordinates")
     if arr.shape[1] == 2:
         arr = np.concatenate([arr, np.full((len(arr), 1), np.nan)], axis=1)
+    bad = np.flatnonzero(np.isinf(arr[:, 2]) | (arr[:, 2] < 0))
+    if len(bad):
+        raise ValueError(
+            f"waypoints have infinite or negative times (column 2: frame indices, NaN = untimed) at rows "
+            f"{bad[:10].tolist()}"
+        )
     return arr
+
+
+def waypoint_time(frame: float, fps: float) -> str:
+    """How every picture labels a timed waypoint: the frame index it was given in (as the API and
+    the command line take it), then that time in seconds at `fps`: ``"f40 (2.0 s)"``."""
+    return f"f{np.format_float_positional(float(frame), trim='-')} ({frame / fps:.1f} s)"
 
 
 def as_obstacles(obstacles: np.ndarray | Sequence | None) -> np.ndarray | None:

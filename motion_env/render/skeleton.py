@@ -41,10 +41,12 @@ from motion_env.render.scene import (
     as_obstacles,
     as_waypoints,
     as_xz,
+    check_size,
     convex_hull,
     floor_ring,
     hex_rgb,
     obstacle_extent,
+    waypoint_time,
     with_breaks,
 )
 
@@ -71,9 +73,10 @@ def _chains(joints: np.ndarray, chains: Sequence[Sequence[int]]) -> np.ndarray:
 
 
 def _waypoint_label(index: int, time_frames: float, fps: float) -> str:
+    """'2' for the second waypoint untimed, '2: f40 (2.0 s)' timed at frame 40."""
     if np.isnan(time_frames):
         return str(index + 1)
-    return f"{index + 1} @{time_frames / fps:.1f}s"
+    return f"{index + 1}: {waypoint_time(time_frames, fps)}"
 
 
 class SkeletonRenderer:
@@ -89,9 +92,9 @@ class SkeletonRenderer:
     """
 
     def __init__(self, width: int = 640, height: int = 480, camera: Camera | None = None) -> None:
-        if width < 64 or height < 64:
-            raise ValueError(f"image size must be at least 64x64 pixels, got {width}x{height}")
-        self.width, self.height = int(width), int(height)
+        self.width, self.height = check_size(width, height)
+        if camera is not None and not isinstance(camera, Camera):
+            raise TypeError(f"camera must be a motion_env.render.Camera, got {type(camera).__name__}")
         self.camera = camera or Camera()
         self._basis = self.camera.basis()
         self._aspect = self.width / self.height
@@ -216,7 +219,8 @@ class SkeletonRenderer:
             target: (2,) x, z of the current goal, drawn as a large ring with a pole.
             obstacles: (N, 3) circles x, z, radius, drawn as cylinders.
             frame: the frame index this picture shows (only used for waypoint state).
-            fps: frame rate used to print waypoint times in seconds.
+            fps: frame rate of the motion; timed waypoints are labelled with their frame and that
+                time in seconds (``"2: f40 (2.0 s)"``).
             title: caption shown at the top (wrapped).
             label: small text at the bottom-left (a frame counter).
             highlight: draw the skeleton red with a red border.
@@ -229,7 +233,9 @@ class SkeletonRenderer:
         trail_xz, path_xz = as_xz(trail, "trail"), as_xz(path, "path")
         wps, obs = as_waypoints(waypoints), as_obstacles(obstacles)
         target_xz = None if target is None else as_xz(np.reshape(target, (1, -1))[:, :2], "target")[0]
-        center_xz = joints[0, [0, 2]] if center is None else np.asarray(center, dtype=np.float64)[:2]
+        center_xz = (
+            joints[0, [0, 2]] if center is None else as_xz(np.reshape(center, (1, -1))[:, :2], "center")[0]
+        )
         eye = self.camera.eye(center_xz)
         pelvis_depth = float((joints[0] - eye) @ self._basis[2])
         # Line widths shrink with distance (a far camera frames the whole path, thin lines).

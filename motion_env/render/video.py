@@ -15,9 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
+from motion_env.motion.checks import check_joints
 from motion_env.motion.types import Motion
 from motion_env.render.camera import Camera, follow_centers, framing_camera
-from motion_env.render.scene import as_obstacles, as_waypoints, obstacle_extent
+from motion_env.render.scene import as_obstacles, as_waypoints, check_size, obstacle_extent
 from motion_env.render.skeleton import SkeletonRenderer
 
 VIDEO_SUFFIXES = (".mp4", ".gif")
@@ -25,21 +26,31 @@ _MAP_EXTENT = 4.0  # metres: videos of routes wider than this get a top-down map
 
 
 def check_video_path(path: str | Path, width: int | None = None, height: int | None = None) -> Path:
-    """`path` as a Path if it names a video type we write (and, for an .mp4, the size is even)."""
+    """`path` as a Path if it names a video type we write, and the size, when given, is positive
+    ints (even ones for an .mp4); else ValueError naming the argument."""
     path = Path(path)
     if path.suffix.lower() not in VIDEO_SUFFIXES:
         raise ValueError(f"{path}: unknown video type {path.suffix!r} (expected one of {VIDEO_SUFFIXES})")
-    if path.suffix.lower() == ".mp4" and width is not None and height is not None and (width | height) % 2:
-        raise ValueError(f"an .mp4 needs an even frame size, got {width}x{height}")
+    if width is not None and height is not None:
+        check_size(width, height, minimum=1)
+        if path.suffix.lower() == ".mp4":
+            for name, value in (("width", width), ("height", height)):
+                if value % 2:
+                    raise ValueError(
+                        f"an .mp4 needs an even frame size: {name} is {value} (got {width}x{height})"
+                    )
     return path
 
 
-def check_fps(fps: float) -> float:
-    """`fps` as a float if it is a positive frame rate."""
-    fps = float(fps)
-    if not (np.isfinite(fps) and fps > 0):
-        raise ValueError(f"fps must be a positive number, got {fps!r}")
-    return fps
+def check_fps(fps: float, name: str = "fps") -> float:
+    """`fps` as a float if it is a positive frame rate, else ValueError naming `name`."""
+    try:
+        value = float(fps)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a positive number, got {fps!r}") from None
+    if not (np.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be a positive number, got {fps!r}")
+    return value
 
 
 def frame_indices(num_frames: int, src_fps: float, fps: float) -> np.ndarray:
@@ -137,15 +148,24 @@ def render_video(
 
     Returns:
         The path written.
+
+    Raises:
+        ValueError: before anything is written, naming the argument: joints of a wrong shape or
+            with NaN or infinite values (the frames), fps not > 0, width or height not an int of
+            at least 64 pixels or odd for an .mp4, bad waypoints, obstacles or highlight frames.
     """
+    if not isinstance(motion, Motion):
+        raise TypeError(f"render_video expects a motion_env.Motion, got {type(motion).__name__}")
+    check_size(width, height)
     path = check_video_path(path, width, height)
     if camera not in ("follow", "fixed"):
         raise ValueError(f"camera must be 'follow' or 'fixed', got {camera!r}")
-    fps = check_fps(fps if fps is not None else motion.fps)
+    joints = check_joints(motion.joints, "motion.joints")  # it may have changed since it was made
+    source_fps = check_fps(motion.fps, "motion.fps")
+    fps = check_fps(fps) if fps is not None else source_fps
     wps = as_waypoints(motion.waypoints if waypoints is None else waypoints)
     obs = as_obstacles(obstacles)
     title = motion.text if title is None else title
-    joints = motion.joints.astype(np.float64)
     root_xz = joints[:, 0, [0, 2]]
     highlighted = np.zeros(motion.num_frames + 1, dtype=bool)
     for f in highlight_frames or ():
@@ -191,7 +211,7 @@ def render_video(
                 frame=int(src),
                 fps=motion.fps,
                 title=title,
-                label=f"frame {src + 1}/{motion.num_frames}   {src / motion.fps:5.2f} s",
+                label=f"frame {src} (0-{motion.num_frames - 1})   {src / motion.fps:5.2f} s",
                 highlight=flagged,
                 flag=highlight_label,
                 inset=inset,

@@ -13,7 +13,11 @@ What is where:
   the ids into it;
 - ``model/``: the Menagerie-style model folder (scene, default body, thresholds, README);
 - :mod:`.fit`: joint positions -> qpos; :mod:`.kinematic`: per-frame measurements;
-  :mod:`.tracking`: PD tracking; :mod:`.corruptions`: physically wrong versions of a motion.
+  :mod:`.tracking`: PD tracking; :mod:`.corruptions`: physically wrong versions of a motion;
+- :mod:`.inputs`: the checks of a motion, a mass, a rate that the public functions make first.
+
+A clip shorter than :func:`~motion_env.replay.checks.min_frames` (20 frames, 1 s at 20 fps) is
+not judged: ``result["judged"]`` is False and ``result["plausible"]`` None.
 
 Videos of a replay are drawn by :func:`motion_env.render.humanoid.render_humanoid_video`.
 """
@@ -24,6 +28,7 @@ from motion_env.replay.checks import (
     evaluate_detailed,
     format_report,
     load_thresholds,
+    min_frames,
     report,
     signals,
 )
@@ -41,6 +46,7 @@ __all__ = [
     "load_model",
     "load_thresholds",
     "measure",
+    "min_frames",
     "report",
     "scene_xml",
     "signals",

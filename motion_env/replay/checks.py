@@ -18,7 +18,9 @@ root_force            force on the root that inverse dynamics needs and the floo
 root_torque           the same for the torque (N m/kg)
 ====================  =========================================================================
 
-A motion is plausible when every check passes. Physical tracking (:mod:`.tracking`) can be
+A motion is plausible when every check passes. A clip shorter than one window of the longest
+check (:data:`MIN_SECONDS`, :func:`min_frames`: 20 frames at 20 fps) is not judged: its report
+says ``"judged": False`` and ``"plausible": None``. Physical tracking (:mod:`.tracking`) can be
 added to the report but does not decide it.
 """
 
@@ -34,6 +36,7 @@ from motion_env.motion.kinematics import resample
 from motion_env.motion.skeleton import FPS, JOINT_NAMES
 from motion_env.motion.types import Motion
 from motion_env.replay.humanoid import BALL_JOINTS, DEFAULT_MASS
+from motion_env.replay.inputs import check_mass, check_motion
 from motion_env.replay.kinematic import CONTACT_HEIGHT, Measurements, measure
 from motion_env.replay.scene import MODEL_DIR
 
@@ -65,6 +68,11 @@ MAX_TAKEOFF_SPEED = 4.5  # m/s upward: about a 1 m rise of the centre of mass, b
 SKATE_WINDOW = 1.0  # s
 SKATE_CONTACT_BAND = 0.02  # m above the local floor
 RESIDUAL_WINDOW = 0.25  # s
+MIN_SECONDS = max(SKATE_WINDOW, RESIDUAL_WINDOW)
+"""The shortest clip the checks can judge (s): one whole window of the longest check, foot
+skating's SKATE_WINDOW. Its threshold is a distance slid within that window, calibrated on whole
+windows, so a shorter clip could pass a foot sliding as fast as a failing one; and the
+accelerations and the root force need frames on both sides of a frame."""
 _SOLE_NAMES = ("left heel slides", "left toes slide", "right heel slides", "right toes slide")
 # How a joint leaves its range, by (joint kind, axis, upper bound?), for the left side and the
 # midline in MuJoCo's frame; right limbs swap the words of the x and z axes.
@@ -99,6 +107,12 @@ def _limit_words(joint: str, axis: int, upper: bool) -> str:
     return ("twists inwards", "twists outwards")[int(upper)]
 
 
+def min_frames(fps: float = FPS) -> int:
+    """The fewest frames a clip at `fps` needs to be judged: :data:`MIN_SECONDS` (20 at 20 fps),
+    and at least 3 (a second difference)."""
+    return max(3, round(MIN_SECONDS * fps))
+
+
 def thresholds_path() -> Path:
     """The shipped calibration file."""
     return MODEL_DIR / "thresholds.json"
@@ -110,11 +124,26 @@ def load_thresholds(path: str | Path | None = None) -> dict[str, float]:
     if not path.is_file():
         raise FileNotFoundError(f"no replay thresholds at {path} (run scripts/calibrate_replay.py)")
     data = json.loads(path.read_text())
-    values = data.get("thresholds", data)
-    missing = [c for c in CHECKS if c not in values]
+    try:
+        return check_thresholds(data.get("thresholds", data))
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
+
+
+def check_thresholds(thresholds: dict) -> dict[str, float]:
+    """A threshold per check as floats, or ValueError naming the missing or non-number ones."""
+    missing = [c for c in CHECKS if c not in thresholds]
     if missing:
-        raise ValueError(f"{path}: thresholds missing for {missing}")
-    return {c: float(values[c]) for c in CHECKS}
+        raise ValueError(f"thresholds missing for {missing}")
+    out = {}
+    for c in CHECKS:
+        try:
+            out[c] = float(thresholds[c])
+        except (TypeError, ValueError):
+            out[c] = float("nan")
+        if np.isnan(out[c]):
+            raise ValueError(f"thresholds[{c!r}] must be a number, got {thresholds[c]!r}")
+    return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -294,7 +323,14 @@ def _message(name: str, m: Measurements, sig: np.ndarray, threshold: float, rang
 
 
 def report(m: Measurements, thresholds: dict[str, float]) -> dict:
-    """The plausibility report (a JSON-serialisable dict) of measured motion `m`."""
+    """The plausibility report (a JSON-serialisable dict) of measured motion `m`.
+
+    A clip shorter than :func:`min_frames` gets ``"judged": False`` and ``"plausible": None``; its
+    checks are still run and reported (``failed`` lists the ones that fail anyway), but they are
+    no verdict: too few frames can neither show a check passing nor, for the finite differences
+    behind speeds, accelerations and root forces, always show one failing.
+    """
+    thresholds = check_thresholds(thresholds)
     sig = signals(m)
     checks = {}
     for name in CHECKS:
@@ -313,13 +349,19 @@ def report(m: Measurements, thresholds: dict[str, float]) -> dict:
     failed = [n for n in CHECKS if not checks[n]["passed"]]
     err = m.fit_error
     worst_joint = int(np.argmax(err.max(axis=0)))
+    need = min_frames(m.fps)
+    judged = m.num_frames >= need
+    problems = "; ".join(checks[n]["message"] for n in failed)
+    if not judged:
+        summary = f"too short to judge: {m.num_frames} frames, at least {need} needed ({need / m.fps:.1f} s)"
+        summary += f"; failing even so: {problems}" if failed else ""
+    else:
+        summary = "not plausible: " + problems if failed else "plausible: every check passed"
     return {
-        "plausible": not failed,
-        "summary": (
-            "plausible: every check passed"
-            if not failed
-            else "not plausible: " + "; ".join(checks[n]["message"] for n in failed)
-        ),
+        "plausible": (not failed) if judged else None,
+        "judged": judged,
+        "min_frames": need,
+        "summary": summary,
         "failed": failed,
         "frames": m.num_frames,
         "fps": m.fps,
@@ -349,8 +391,9 @@ def evaluate_detailed(
     """
     if not isinstance(motion, Motion):
         raise TypeError(f"evaluate expects a motion_env.Motion, got {type(motion).__name__}")
-    if not isinstance(thresholds, dict):
-        thresholds = load_thresholds(thresholds)
+    check_motion(motion)  # its arrays may have changed since it was made
+    mass = check_mass(mass)
+    thresholds = check_thresholds(thresholds) if isinstance(thresholds, dict) else load_thresholds(thresholds)
     source_fps = motion.fps
     if abs(motion.fps - FPS) > 1e-6:
         joints = resample(motion.joints, motion.fps, FPS)
@@ -374,14 +417,33 @@ def evaluate(
 ) -> dict:
     """Replay `motion` on a MuJoCo humanoid of `mass` kg and report what is physically wrong.
 
-    Returns a JSON-serialisable dict: ``plausible`` (bool), ``summary`` (one line),
-    ``failed`` (check names), ``fit_error`` (how far the humanoid's joints are from the
-    motion's, cm), ``checks`` (per check: ``value``, ``threshold``, ``unit``, ``passed``,
-    ``frames`` as inclusive [first, last] ranges, ``worst_frame``, ``message``) and
-    ``tracking`` (None, or the result of :func:`motion_env.replay.tracking.track` when `track`).
+    Returns a JSON-serialisable dict: ``plausible`` (bool, or None when not judged),
+    ``judged`` (False for a clip shorter than ``min_frames``, 20 frames = 1 s at 20 fps: too
+    short for the checks' windows), ``min_frames``, ``summary`` (one line; for a clip not judged
+    "too short to judge: N frames, at least M needed (X s)"), ``failed`` (check names),
+    ``fit_error`` (how far the humanoid's joints are from the motion's, cm), ``checks`` (per
+    check: ``value``, ``threshold``, ``unit``, ``passed``, ``frames`` as inclusive [first, last]
+    ranges, ``worst_frame``, ``message``) and ``tracking`` (None, or the result of
+    :func:`motion_env.replay.tracking.track` when `track`).
     thresholds: a dict per check, or a calibration JSON path; default the shipped calibration.
+
+    Raises ValueError, naming the argument, for joints with NaN or infinite values (and the
+    frames where they are), a rate that is not > 0, a mass that is not a positive number or
+    thresholds missing a check; TypeError when `motion` is not a :class:`Motion`.
     """
     return evaluate_detailed(motion, mass, thresholds, track)[1]
+
+
+def _verdict(result: dict) -> str:
+    """The verdict line of :func:`format_report`."""
+    failed = ", ".join(result["failed"])
+    if not result.get("judged", True):
+        need = result["min_frames"]
+        return (
+            f"verdict: CANNOT BE JUDGED (too short: {result['frames']} frames, at least {need} "
+            f"needed, {need / result['fps']:.1f} s)" + (f"; failing even so: {failed}" if failed else "")
+        )
+    return "verdict: PLAUSIBLE" if result["plausible"] else f"verdict: NOT PLAUSIBLE (failed: {failed})"
 
 
 def format_report(result: dict, title: str | None = None) -> str:
@@ -395,14 +457,12 @@ def format_report(result: dict, title: str | None = None) -> str:
             if "resampled_from_fps" in result
             else ""
         ),
-        "verdict: PLAUSIBLE"
-        if result["plausible"]
-        else f"verdict: NOT PLAUSIBLE (failed: {', '.join(result['failed'])})",
+        _verdict(result),
         f"fit: the humanoid's joints are {result['fit_error']['mean_cm']:.1f} cm from the motion's on "
         f"average (at most {result['fit_error']['max_cm']:.1f} cm, {result['fit_error']['worst_joint']})",
     ]
     for name, c in result["checks"].items():
-        mark = "ok  " if c["passed"] else "FAIL"
+        mark = ("ok  " if result.get("judged", True) else "--  ") if c["passed"] else "FAIL"
         lines.append(f"  [{mark}] {name:<16} {c['message']}")
     if result.get("tracking"):
         lines.append(f"tracking (not part of the verdict): {result['tracking']['message']}")

@@ -23,6 +23,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from motion_env.motion.checks import check_joints
 from motion_env.motion.rotations import qbetween, qfix, quat_from_matrix, quat_to_matrix
 from motion_env.motion.skeleton import BONE_LENGTHS, JOINT_INDEX, NUM_JOINTS, PARENTS
 from motion_env.replay.humanoid import BALL_JOINTS, CHILDREN, REST_DIRECTIONS, rest_positions, to_mujoco
@@ -78,13 +79,6 @@ def _swing(parent_world: np.ndarray, rest_dir: np.ndarray, obs_dir: np.ndarray) 
     return parent_world @ local
 
 
-def _check_joints(joints: np.ndarray) -> np.ndarray:
-    joints = np.asarray(joints, dtype=np.float64)
-    if joints.ndim != 3 or joints.shape[1:] != (NUM_JOINTS, 3) or len(joints) < 1:
-        raise ValueError(f"joints must have shape (T, {NUM_JOINTS}, 3) with T >= 1, got {joints.shape}")
-    return joints
-
-
 def clip_rest_directions(joints: np.ndarray) -> np.ndarray:
     """Rest bone directions (22, 3) whose pelvis and chest have the clip's own shape.
 
@@ -95,7 +89,7 @@ def clip_rest_directions(joints: np.ndarray) -> np.ndarray:
     defaults of :data:`humanoid.REST_DIRECTIONS`, and so does the pitch of a flat foot; limbs
     keep theirs. joints: (T, 22, 3), Y up, floor at y = 0.
     """
-    joints = _check_joints(joints)
+    joints = check_joints(joints)
     j = JOINT_INDEX
     dirs = REST_DIRECTIONS.copy()
     for centre, left, right, up in (
@@ -133,7 +127,7 @@ def fit_rotations(
     world (T, 22, 3, 3))`` in MuJoCo's frame; ``world[:, j]`` is the rotation of the body whose
     origin is joint j (identity in the rest pose), and is left as identity for leaf joints.
     """
-    joints = _check_joints(joints)
+    joints = check_joints(joints)
     j = JOINT_INDEX
     p = to_mujoco(joints)
     rest = to_mujoco(rest_positions(rest_directions))

@@ -18,6 +18,7 @@ from motion_env.motion.rotations import quat_to_axis_angle
 from motion_env.motion.types import Motion
 from motion_env.replay.fit import clip_rest_directions, fit_qpos
 from motion_env.replay.humanoid import DEFAULT_MASS, joint_ranges_rad, to_mujoco
+from motion_env.replay.inputs import check_mass, check_motion
 from motion_env.replay.scene import ModelIndex, load_model, model_index
 
 CONTACT_HEIGHT = 0.05
@@ -107,15 +108,19 @@ def measure(motion: Motion, mass: float = DEFAULT_MASS) -> Measurements:
     ``mj_inverse`` (constraints off) gives the wrench the root needs for the observed
     accelerations, and the part the floor cannot supply is found by non-negative least squares
     over friction-cone forces at the body points within :data:`CONTACT_HEIGHT` of the floor.
+
+    Raises ValueError for joints of a wrong shape or with NaN or infinite values (naming the
+    frames), a rate that is not > 0 or a mass that is not a positive number.
     """
-    joints = np.asarray(motion.joints, dtype=np.float64)
+    joints, fps = check_motion(motion)
+    mass = check_mass(mass)
     rest = clip_rest_directions(joints)
     model = load_model(mass, rest)
     index = model_index(model)
     data = mujoco.MjData(model)
     qpos = fit_qpos(joints, model, index, rest)
     n = len(qpos)
-    dt = 1.0 / motion.fps
+    dt = 1.0 / fps
     body_geoms = index.body_geoms
     names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) for g in range(model.ngeom)]
 
@@ -155,8 +160,8 @@ def measure(motion: Motion, mass: float = DEFAULT_MASS) -> Measurements:
     excess, axis = _limit_excess(qpos, index)
     _, residual = inverse_dynamics(model, index, qpos, points.reshape(n, -1, 3), dt)
     return Measurements(
-        fps=float(motion.fps),
-        mass=float(mass),
+        fps=fps,
+        mass=mass,
         rest_directions=rest,
         qpos=qpos,
         fit_error=np.linalg.norm(sites - to_mujoco(joints), axis=-1),

@@ -15,6 +15,7 @@ import numpy as np
 from motion_env.motion.skeleton import JOINT_NAMES
 from motion_env.motion.types import Motion
 from motion_env.replay.humanoid import BALL_JOINTS, DEFAULT_MASS
+from motion_env.replay.inputs import check_positive
 from motion_env.replay.kinematic import Measurements, inverse_dynamics, measure
 from motion_env.replay.scene import load_model, model_index
 
@@ -37,6 +38,7 @@ def track(
     None), ``mean_joint_error_cm`` (22 joints, while up), ``root_drift_m`` (horizontal distance of
     the pelvis from the motion's when the run ended), ``message``.
     """
+    stiffness = check_positive(stiffness, "stiffness", " of N m/rad per kg")
     m = measure(motion, mass) if measurements is None else measurements
     model = load_model(m.mass, m.rest_directions)
     index = model_index(model)

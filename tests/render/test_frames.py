@@ -58,3 +58,33 @@ def test_render_frame_rejects_bad_input(walker):
         render_frame(joints, waypoints=np.zeros((3, 4)))
     with pytest.raises(ValueError, match="obstacles"):
         render_frame(joints, obstacles=[[0.0, 1.0, -0.5]])
+
+
+def test_render_frame_names_bad_arguments(walker):
+    joints = walker(1).joints[0]
+    with pytest.raises(ValueError, match="^width must be an int of at least 64 pixels, got 10"):
+        render_frame(joints, width=10, height=120)
+    with pytest.raises(ValueError, match="^height must be an int of at least 64 pixels, got 120.5"):
+        render_frame(joints, width=160, height=120.5)
+    with pytest.raises(ValueError, match="center"):
+        render_frame(joints, center=[np.nan, 0.0], width=160, height=120)
+    with pytest.raises(ValueError, match="target"):
+        render_frame(joints, target=[np.inf, 0.0], width=160, height=120)
+    with pytest.raises(ValueError, match="path"):
+        render_frame(joints, path=[[0.0, 0.0], [np.nan, 1.0]], width=160, height=120)
+    with pytest.raises(ValueError, match="waypoints have infinite or negative times"):
+        render_frame(joints, waypoints=[[0.0, 1.0, np.inf]], width=160, height=120)
+    with pytest.raises(TypeError, match="camera"):
+        render_frame(joints, camera="front", width=160, height=120)
+
+
+def test_timed_waypoints_are_labelled_in_frames_then_seconds(walker, small):
+    from motion_env.render.scene import waypoint_time
+    from motion_env.render.skeleton import SkeletonRenderer
+
+    assert waypoint_time(40, 20) == "f40 (2.0 s)" and waypoint_time(40.5, 20) == "f40.5 (2.0 s)"
+    renderer = SkeletonRenderer(**small)
+    renderer.draw(walker(1).joints[0], waypoints=[[0.0, 1.0, 40.0], [1.0, 2.0, np.nan]], fps=20.0)
+    labels = [t.get_text() for t in renderer.figure.axes[0].texts if t.get_visible() and t.get_text()]
+    assert "1: f40 (2.0 s)" in labels and "2" in labels
+    assert not any("t=" in label or "s@" in label or "@" in label for label in labels)

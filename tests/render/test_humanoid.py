@@ -44,6 +44,20 @@ def test_render_humanoid_video_marks_problem_frames(tmp_path):
         render_humanoid_video(measurements, report, tmp_path / "replay.avi")
 
 
+def test_render_humanoid_video_of_a_clip_too_short_to_judge(tmp_path, monkeypatch):
+    import motion_env.render.humanoid as module
+
+    texts = []
+    draw = module._text_image
+    monkeypatch.setattr(module, "_text_image", lambda text, *a: (texts.append(text), draw(text, *a))[1])
+    rest = rest_positions().astype(np.float32)
+    measurements, report = evaluate_detailed(Motion(np.repeat(rest[None], 4, axis=0)))
+    assert report["judged"] is False
+    out = _offscreen(lambda: render_humanoid_video(measurements, report, tmp_path / "short.gif", 160, 90))
+    assert iio.imread(out, index=None).shape[0] == 4
+    assert texts and all(t.endswith("too short to judge") for t in texts)
+
+
 def test_humanoid_view_draws_the_pose_and_the_scene():
     view = _offscreen(lambda: HumanoidView(128, 96))
     try:

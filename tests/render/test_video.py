@@ -87,3 +87,38 @@ def test_render_real_clip(tmp_path, humanml3d_sample, mask, small):
     frames = iio.imread(render_video(motion, tmp_path / "real.mp4", fps=5, **small), index=None)
     assert frames.shape[0] == 43  # 170 frames at 20 fps = 8.5 s -> 42.5 frames at 5 fps, rounded up
     assert all(mask(f, LEFT_COLOR, 60).sum() > 10 for f in frames)
+
+
+def test_render_video_names_bad_input(tmp_path, walker):
+    motion = walker(6)
+    motion.joints[3, 4, 1] = np.nan  # a Motion checks its joints when made; its array can change
+    with pytest.raises(ValueError, match=r"motion\.joints has NaN or infinite values at frames \[3\]"):
+        render_video(motion, tmp_path / "clip.gif")
+    motion = walker(6)
+    motion.fps = 0.0
+    with pytest.raises(ValueError, match=r"motion\.fps must be a positive number"):
+        render_video(motion, tmp_path / "clip.gif")
+    motion = walker(6)
+    sizes = [
+        ({"width": 160.5, "height": 120}, "width"),
+        ({"width": 160, "height": 0}, "height"),
+        ({"width": 32, "height": 120}, "width"),
+        ({"width": 160, "height": True}, "height"),
+    ]
+    for size, name in sizes:
+        with pytest.raises(ValueError, match=rf"^{name} must be an int of at least 64 pixels"):
+            render_video(motion, tmp_path / "clip.gif", **size)
+    with pytest.raises(ValueError, match="even frame size: height is 121"):
+        render_video(motion, tmp_path / "clip.mp4", width=160, height=121)
+    with pytest.raises(ValueError, match=r"waypoints have infinite or negative times .* rows \[1\]"):
+        render_video(motion, tmp_path / "clip.gif", waypoints=[[0, 1, 5], [1, 1, -3]])
+    with pytest.raises(TypeError, match="motion_env.Motion"):
+        render_video(motion.joints, tmp_path / "clip.gif")
+    assert not list(tmp_path.iterdir())  # nothing written
+
+
+def test_video_size_check_names_the_argument(tmp_path):
+    with pytest.raises(ValueError, match="^width must be an int of at least 1 pixels"):
+        check_video_path(tmp_path / "a.mp4", 0, 120)
+    with pytest.raises(ValueError, match="even frame size: width is 161"):
+        check_video_path(tmp_path / "a.mp4", 161, 120)

@@ -11,7 +11,7 @@ import pytest
 from motion_env.io.bvh import load_bvh
 from motion_env.motion.types import Motion
 from motion_env.replay import corruptions, evaluate, format_report
-from motion_env.replay.checks import CHECKS, load_thresholds
+from motion_env.replay.checks import CHECKS, SKATE_WINDOW, load_thresholds, min_frames
 
 
 def test_evaluate_is_the_function_of_the_package() -> None:
@@ -45,6 +45,30 @@ def test_report_is_json_with_frames_and_words(standing_clip) -> None:
     assert set(result["checks"]) == set(CHECKS)
     text = format_report(result, title="clip")
     assert "NOT PLAUSIBLE" in text and "floating" in text
+
+
+def test_too_short_clips_are_not_judged(standing_clip) -> None:
+    # The longest window of the checks (foot skating's second) is the shortest clip judged.
+    assert min_frames() == round(SKATE_WINDOW * 20) == 20
+    assert min_frames(30) == 30 and min_frames(1) == 3
+    for frames in (1, 2, 19):
+        result = evaluate(standing_clip(frames / 20))
+        assert result["plausible"] is None and result["judged"] is False and result["min_frames"] == 20
+        assert result["summary"] == f"too short to judge: {frames} frames, at least 20 needed (1.0 s)"
+        assert result["failed"] == [] and set(result["checks"]) == set(CHECKS)
+        json.dumps(result)
+        text = format_report(result)
+        assert "verdict: CANNOT BE JUDGED (too short" in text and "PLAUSIBLE" not in text
+    judged = evaluate(standing_clip(1.0))
+    assert judged["plausible"] is True and judged["judged"] is True
+    # A check that fails on a short clip is reported, but it is no verdict either.
+    lifted = evaluate(corruptions.raised(standing_clip(0.1), seconds=0.1, start=0))
+    assert lifted["plausible"] is None and "root_force" in lifted["failed"]
+    assert "failing even so:" in lifted["summary"]
+    assert "failing even so: " in format_report(lifted)
+    # Counted at 20 fps, after the resampling: 25 frames at 30 fps are 17 frames at 20 fps.
+    fast = evaluate(Motion(standing_clip(1.25).joints[:25], fps=30.0))
+    assert fast["judged"] is False and fast["frames"] == 17 and fast["resampled_from_fps"] == 30.0
 
 
 def test_held_out_real_takes_are_plausible_and_corruptions_caught(held_out_takes) -> None:

@@ -1,0 +1,45 @@
+"""What the replay's public functions accept, checked once where a caller hands it over.
+
+:func:`~motion_env.replay.evaluate`, :func:`~motion_env.replay.evaluate_detailed`,
+:func:`~motion_env.replay.measure`, :func:`~motion_env.replay.tracking.track` and the fit
+(:func:`~motion_env.replay.fit.fit_qpos`, which takes raw arrays) call these first, so that a bad
+input fails with a ValueError naming the argument instead of deep inside MuJoCo or the fit.
+
+A :class:`motion_env.Motion` checks its joints and rate when it is made, but its arrays can be
+changed afterwards (``motion.joints[5] = np.nan``, ``motion.fps = 0``), and :func:`measure`
+takes any object with ``joints`` and ``fps``: so the motion is checked again here.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from motion_env.motion.checks import check_joints
+
+
+def check_positive(value: Any, name: str, unit: str = "") -> float:
+    """`value` as a float if it is a finite number > 0, else ValueError naming `name`."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a positive finite number{unit}, got {value!r}") from None
+    if not (np.isfinite(number) and number > 0):
+        raise ValueError(f"{name} must be a positive finite number{unit}, got {value!r}")
+    return number
+
+
+def check_mass(mass: Any) -> float:
+    """The humanoid's mass in kg as a float, or ValueError."""
+    return check_positive(mass, "mass", " of kg")
+
+
+def check_motion(motion: Any, name: str = "motion") -> tuple[np.ndarray, float]:
+    """``(joints (T, 22, 3) float64, fps)`` of a motion, or ValueError naming what is wrong
+    (a wrong shape, the frames with NaN or infinite values, a rate that is not > 0)."""
+    if not (hasattr(motion, "joints") and hasattr(motion, "fps")):
+        raise TypeError(f"{name} must be a motion_env.Motion, got {type(motion).__name__}")
+    joints = check_joints(motion.joints, f"{name}.joints")
+    fps = check_positive(motion.fps, f"{name}.fps", " of frames per second")
+    return joints, fps
