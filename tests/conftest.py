@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import os
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -18,6 +19,8 @@ import pytest
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 os.environ.setdefault("MUJOCO_GL", "egl")
+# Caption embeddings are cached on disk by the package; tests keep theirs out of the user's cache.
+os.environ.setdefault("MOTION_ENV_CACHE", tempfile.mkdtemp(prefix="motion_env_test_cache_"))
 
 DATA_ENV = "MOTION_ENV_DATA"
 DATA_DIR = Path(os.environ.get(DATA_ENV) or Path(__file__).resolve().parents[2] / "shared" / "data")

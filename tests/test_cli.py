@@ -16,14 +16,16 @@ _ENCODERS: dict[str, object] = {}
 
 
 @pytest.fixture(autouse=True)
-def _shared_text_encoder(monkeypatch) -> None:
-    """Every command of this file loads the same (real) MiniLM encoder once, not once per call."""
-    import motion_env.text
+def _shared_text_encoder(monkeypatch, tmp_path) -> None:
+    """Every command of this file loads the same (real) MiniLM encoder once, not once per call,
+    and keeps its embedding cache in the test's folder."""
+    import motion_env.text.encoders as encoders
 
-    load = motion_env.text.load_text_encoder
+    monkeypatch.setenv("MOTION_ENV_CACHE", str(tmp_path / "cache"))
+    load = encoders.load_text_encoder
     cache = _ENCODERS
     monkeypatch.setattr(
-        motion_env.text,
+        encoders,
         "load_text_encoder",
         lambda name="minilm", **kw: cache.setdefault(name, load(name, **kw)),
     )

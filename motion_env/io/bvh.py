@@ -29,6 +29,12 @@
    from the foot contacts (:func:`_level_floor`), then :func:`motion_env.motion.canonicalize` puts
    the clip on the canonical bone lengths, feet on the floor, pelvis above the origin, facing +Z.
 
+The package's own BVH files (:func:`motion_env.io.save_bvh`; every canonical joint under its own
+name) hold motion that is canonical already: the lead-in (step 5) and the levelling (step 6) are
+skipped for them, so ``load_bvh(save_bvh(m))`` gives ``canonicalize(m.joints)`` (``m`` itself for
+a canonical clip at 20 fps). The levelling is not idempotent: run again on its own output it can
+find a new tilt of a few tenths of a degree, as it measures the tilt before the retargeting.
+
 Left and right follow the file's joint names (``_L`` / ``l`` / ``Left``); on the Bandai and CMU
 files the canonical left hip ends up at +X when the body faces +Z, and feet on the floor point
 the way the body faces (checked in tests/io/test_bvh.py). Not handled: Z-up files (BVH is Y-up by
@@ -45,7 +51,7 @@ from scipy.spatial.transform import Rotation
 
 from motion_env import motion as mmath
 from motion_env.io.bvh_file import AXES, BvhFile, bvh_world_positions, read_bvh
-from motion_env.io.joint_names import REQUIRED_JOINTS, map_joint_names
+from motion_env.io.joint_names import REQUIRED_JOINTS, has_canonical_names, map_joint_names
 from motion_env.motion.skeleton import BONE_LENGTHS, FOOT_JOINTS, FPS, JOINT_INDEX, NUM_JOINTS
 from motion_env.motion.types import Motion
 
@@ -294,10 +300,13 @@ def load_bvh(path: str | Path) -> Motion:
     plan = _plan(bvh)
     scale = _unit_scale(bvh, plan)
     joints = _canonical_joints(bvh, plan, scale)
-    lead_in = _lead_in_frames(bvh, plan, joints)
+    # The package's own files (save_bvh) hold canonical motion, not a capture: no conversion
+    # lead-in, no tilted floor; so load_bvh(save_bvh(m)) is canonicalize(m).
+    own = has_canonical_names(bvh.names)
+    lead_in = 0 if own else _lead_in_frames(bvh, plan, joints)
     joints = joints[lead_in:]
     joints = mmath.resample(joints, bvh.fps, FPS)
-    joints, tilt = _level_floor(joints, FPS)
+    joints, tilt = (joints, 0.0) if own else _level_floor(joints, FPS)
     joints = mmath.canonicalize(joints)
     meta = {
         "source": str(bvh.path),

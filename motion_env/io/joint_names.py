@@ -3,14 +3,17 @@
 Covers the Bandai Namco skeleton (``Hips``, ``UpperLeg_L``, ...), the CMU "Daz-friendly" skeleton
 (``hip``, ``lThigh``, ``lShldr``, ...) and the common MotionBuilder / Mixamo / 3ds Max biped naming
 (``Hips``, ``LeftUpLeg``, ``LeftArm``, ``mixamorig:Hips``, ``Bip01 L Thigh``, ...), case- and
-prefix-tolerant.
+prefix-tolerant; and the package's own names (``left_ankle``, ``left_foot``, ...), which
+:func:`motion_env.io.save_bvh` writes, taken as they are.
 """
 
 from __future__ import annotations
 
 import re
 
-__all__ = ["REQUIRED_JOINTS", "map_joint_names"]
+from motion_env.motion.skeleton import JOINT_NAMES
+
+__all__ = ["REQUIRED_JOINTS", "has_canonical_names", "map_joint_names"]
 
 # Namespace / rig prefixes stripped before matching ("mixamorig:Hips", "Bip01 L Thigh", "DEF-thigh.L").
 _PREFIX = re.compile(r"^(?:mixamorig\d*[:_]?|bip0*1[\s_]*|def[-_]|cc_base_)", re.IGNORECASE)
@@ -54,6 +57,24 @@ def _side_and_base(name: str) -> tuple[str, str]:
     return side, re.sub(r"[^a-z0-9]", "", name.lower())
 
 
+def _canonical_names(names: list[str]) -> dict[str, int] | None:
+    """The package's own names (``motion_env.io.save_bvh`` writes them), matched as they are.
+
+    They must be matched whole: ``left_foot`` is the canonical toe, where the base-name rules
+    below read "foot" as the ankle (as in Mixamo's ``LeftFoot``). None unless every canonical
+    joint name is there exactly once.
+    """
+    if not all(names.count(name) == 1 for name in JOINT_NAMES):
+        return None
+    return {name: names.index(name) for name in JOINT_NAMES if not name.startswith("spine")}
+
+
+def has_canonical_names(names: list[str]) -> bool:
+    """True when every canonical joint is there under its own name, once (the package's own
+    BVH files, written by :func:`motion_env.io.save_bvh`)."""
+    return _canonical_names(names) is not None
+
+
 def map_joint_names(names: list[str]) -> dict[str, int]:
     """Match source joint names to canonical joint names.
 
@@ -61,6 +82,9 @@ def map_joint_names(names: list[str]) -> dict[str, int]:
         canonical name -> source joint index for every canonical joint found by name (the spine
         joints ``spine1..3`` are never matched by name: they are placed along the spine polyline).
     """
+    exact = _canonical_names(names)
+    if exact is not None:
+        return exact
     keys = [_side_and_base(n) for n in names]
     found: dict[str, int] = {}
 

@@ -1,4 +1,4 @@
-"""`Motion`: one clip of body poses on the canonical skeleton, with save/load to `.npz`."""
+"""`Motion`: one clip of body poses on the canonical skeleton, with save/load to `.npz` (and BVH out)."""
 
 from __future__ import annotations
 
@@ -76,6 +76,12 @@ class Motion:
         arrays["meta"] = np.array(json.dumps(self.meta))
         np.savez(path, **arrays)
         return path
+
+    def save_bvh(self, path: str | Path) -> Path:
+        """Write the clip as a BVH file (``.bvh`` or ``.bvh.gz``): :func:`motion_env.io.save_bvh`."""
+        from motion_env.io.bvh_write import save_bvh  # io/ is a layer above: imported on use
+
+        return save_bvh(self, path)
 
     @classmethod
     def load(cls, path: str | Path) -> Motion:

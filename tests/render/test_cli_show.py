@@ -16,7 +16,25 @@ def test_cli_show_npz(tmp_path, capsys, walker):
     assert "wrote" in capsys.readouterr().out
     assert main(["show", str(src), "--out", str(tmp_path / "walk.avi")]) == 2
     assert "unknown video type" in capsys.readouterr().err
-    assert main(["show", str(tmp_path / "missing.npz"), "--out", str(out)]) == 2
+    assert main(["show", str(tmp_path / "missing.npz"), "--out", str(tmp_path / "new.mp4")]) == 2
+    assert (
+        capsys.readouterr().err.strip()
+        == f"motion-env show: error: no motion file at {tmp_path / 'missing.npz'}"
+    )
+
+
+def test_cli_show_refuses_to_replace_outputs(tmp_path, capsys, walker, monkeypatch):
+    """`show walk.npz` writes walk.mp4 here, where `generate --video walk.mp4` may have put one."""
+    monkeypatch.chdir(tmp_path)
+    src = walker(4).save(tmp_path / "walk.npz")
+    (tmp_path / "walk.mp4").write_bytes(b"from generate")
+    assert main(["show", "walk.npz"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "motion-env show: error: walk.mp4 exists: nothing was written (pass --overwrite to replace it)"
+    )
+    assert (tmp_path / "walk.mp4").read_bytes() == b"from generate"
+    assert main(["show", str(src), "--overwrite"]) == 0
+    assert iio.imread(tmp_path / "walk.mp4", index=None).shape[0] == 4
 
 
 def test_cli_show_real_bvh(tmp_path, require_data):

