@@ -40,6 +40,18 @@ def check_finite(values: np.ndarray, name: str, index: str = "rows") -> None:
         raise ValueError(f"{name} has NaN or infinite values at {index} {bad[:10].tolist()}")
 
 
+def check_positive(value: Any, name: str, unit: str = "") -> float:
+    """`value` as a float if it is a finite number > 0 (a rate, a mass, ...), else ValueError naming
+    `name` (`unit` is appended to the expectation, e.g. " of kg")."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a positive finite number{unit}, got {value!r}") from None
+    if not (np.isfinite(number) and number > 0):
+        raise ValueError(f"{name} must be a positive finite number{unit}, got {value!r}")
+    return number
+
+
 # ----------------------------------------------------------------------------------------------
 # Fields of config dataclasses (called from their __post_init__)
 # ----------------------------------------------------------------------------------------------

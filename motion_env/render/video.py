@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from motion_env.motion.checks import check_joints
+from motion_env.motion.checks import check_joints, check_positive
 from motion_env.motion.types import Motion
 from motion_env.render.camera import Camera, follow_centers, framing_camera
 from motion_env.render.scene import as_obstacles, as_waypoints, check_size, obstacle_extent
@@ -44,13 +44,7 @@ def check_video_path(path: str | Path, width: int | None = None, height: int | N
 
 def check_fps(fps: float, name: str = "fps") -> float:
     """`fps` as a float if it is a positive frame rate, else ValueError naming `name`."""
-    try:
-        value = float(fps)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a positive number, got {fps!r}") from None
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be a positive number, got {fps!r}")
-    return value
+    return check_positive(fps, name)
 
 
 def frame_indices(num_frames: int, src_fps: float, fps: float) -> np.ndarray:

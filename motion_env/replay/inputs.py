@@ -16,18 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from motion_env.motion.checks import check_joints
-
-
-def check_positive(value: Any, name: str, unit: str = "") -> float:
-    """`value` as a float if it is a finite number > 0, else ValueError naming `name`."""
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a positive finite number{unit}, got {value!r}") from None
-    if not (np.isfinite(number) and number > 0):
-        raise ValueError(f"{name} must be a positive finite number{unit}, got {value!r}")
-    return number
+from motion_env.motion.checks import check_joints, check_positive
 
 
 def check_mass(mass: Any) -> float:

@@ -12,10 +12,10 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from motion_env.motion.checks import check_positive
 from motion_env.motion.skeleton import JOINT_NAMES
 from motion_env.motion.types import Motion
 from motion_env.replay.humanoid import BALL_JOINTS, DEFAULT_MASS
-from motion_env.replay.inputs import check_positive
 from motion_env.replay.kinematic import Measurements, inverse_dynamics, measure
 from motion_env.replay.scene import load_model, model_index
 

@@ -50,7 +50,7 @@ def test_plot_path_names_bad_input(tmp_path, walker):
     with pytest.raises(TypeError, match=r"motion_or_motions\[0\] must be a motion_env.Motion, got ndarray"):
         plot_path([a.joints], tmp_path / "p.png")
     a.fps = -1.0
-    with pytest.raises(ValueError, match=r"motion_or_motions\.fps must be a positive number"):
+    with pytest.raises(ValueError, match=r"motion_or_motions\.fps must be a positive finite number"):
         plot_path(a, tmp_path / "p.png")
     with pytest.raises(ValueError, match="waypoints have infinite or negative times"):
         plot_path(walker(10), tmp_path / "p.png", waypoints=[[0.0, 1.0, -1.0]])

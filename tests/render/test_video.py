@@ -96,7 +96,7 @@ def test_render_video_names_bad_input(tmp_path, walker):
         render_video(motion, tmp_path / "clip.gif")
     motion = walker(6)
     motion.fps = 0.0
-    with pytest.raises(ValueError, match=r"motion\.fps must be a positive number"):
+    with pytest.raises(ValueError, match=r"motion\.fps must be a positive finite number"):
         render_video(motion, tmp_path / "clip.gif")
     motion = walker(6)
     sizes = [
