@@ -4,7 +4,9 @@
   stays responsive);
 - real motion capture is read from one place: ``$MOTION_ENV_DATA`` when set, else
   ``../shared/data`` beside the checkout. Tests that need it ask for the :func:`shared_data`
-  fixture (or :func:`require_data`) and skip, saying how to point them at the data, when absent.
+  fixture (or :func:`require_data`) and skip, saying how to point them at the data, when absent;
+- the robot models (MJCF) likewise: ``$MOTION_ENV_ROBOTS`` when set, else ``../shared/robots``;
+  tests ask for :func:`require_robot` and skip when a robot is absent.
 """
 
 from __future__ import annotations
@@ -25,6 +27,8 @@ os.environ.setdefault("MOTION_ENV_CACHE", tempfile.mkdtemp(prefix="motion_env_te
 DATA_ENV = "MOTION_ENV_DATA"
 DATA_DIR = Path(os.environ.get(DATA_ENV) or Path(__file__).resolve().parents[2] / "shared" / "data")
 HUMANML3D_CLIP = "012314"
+ROBOTS_ENV = "MOTION_ENV_ROBOTS"
+ROBOTS_DIR = Path(os.environ.get(ROBOTS_ENV) or Path(__file__).resolve().parents[2] / "shared" / "robots")
 
 
 def missing_data(path: Path) -> str:
@@ -55,6 +59,20 @@ def require_data() -> Callable[[str], Path]:
         path = DATA_DIR / relative
         if not path.exists():
             pytest.skip(missing_data(path))
+        return path
+
+    return require
+
+
+@pytest.fixture(scope="session")
+def require_robot() -> Callable[[str], Path]:
+    """``require_robot("unitree_g1")`` -> that robot's ``scene.xml`` under the robots folder, or
+    skip the test."""
+
+    def require(name: str) -> Path:
+        path = ROBOTS_DIR / name / "scene.xml"
+        if not path.is_file():
+            pytest.skip(f"robot model not found at {path}: set {ROBOTS_ENV}=/path/to/shared/robots to run it")
         return path
 
     return require

@@ -14,7 +14,10 @@ What is where:
 - ``model/``: the Menagerie-style model folder (scene, default body, thresholds, README);
 - :mod:`.fit`: joint positions -> qpos; :mod:`.kinematic`: per-frame measurements;
   :mod:`.tracking`: PD tracking; :mod:`.corruptions`: physically wrong versions of a motion;
-- :mod:`.inputs`: the checks of a motion, a mass, a rate that the public functions make first.
+- :mod:`.inputs`: the checks of a motion, a mass, a rate that the public functions make first;
+- :mod:`.robot`: :func:`evaluate_robot`, the checks on a robot's ``qpos`` (its model, e.g.
+  ``../shared/robots/unitree_g1/scene.xml``), measured by :mod:`.robot_kinematic`;
+  :mod:`.judging`: what the humanoid's and the robot's reports share (:func:`format_report`).
 
 A clip shorter than :func:`~motion_env.replay.checks.min_frames` (20 frames, 1 s at 20 fps) is
 not judged: ``result["judged"]`` is False and ``result["plausible"]`` None.
@@ -26,14 +29,15 @@ from motion_env.replay.checks import (
     CHECKS,
     evaluate,
     evaluate_detailed,
-    format_report,
     load_thresholds,
     min_frames,
     report,
     signals,
 )
 from motion_env.replay.humanoid import humanoid_xml
+from motion_env.replay.judging import format_report
 from motion_env.replay.kinematic import Measurements, measure
+from motion_env.replay.robot import evaluate_robot
 from motion_env.replay.scene import load_model, scene_xml
 
 __all__ = [
@@ -41,6 +45,7 @@ __all__ = [
     "Measurements",
     "evaluate",
     "evaluate_detailed",
+    "evaluate_robot",
     "format_report",
     "humanoid_xml",
     "load_model",

@@ -37,6 +37,7 @@ from motion_env.motion.skeleton import FPS, JOINT_NAMES
 from motion_env.motion.types import Motion
 from motion_env.replay.humanoid import BALL_JOINTS, DEFAULT_MASS
 from motion_env.replay.inputs import check_mass, check_motion
+from motion_env.replay.judging import check_entry, runs, sentence, verdict
 from motion_env.replay.kinematic import CONTACT_HEIGHT, Measurements, measure
 from motion_env.replay.scene import MODEL_DIR
 
@@ -73,7 +74,8 @@ MIN_SECONDS = max(SKATE_WINDOW, RESIDUAL_WINDOW)
 skating's SKATE_WINDOW. Its threshold is a distance slid within that window, calibrated on whole
 windows, so a shorter clip could pass a foot sliding as fast as a failing one; and the
 accelerations and the root force need frames on both sides of a frame."""
-_SOLE_NAMES = ("left heel slides", "left toes slide", "right heel slides", "right toes slide")
+SOLE_NAMES = ("left heel slides", "left toes slide", "right heel slides", "right toes slide")
+"""The four sole points of the foot-skating check, as the report words them."""
 # How a joint leaves its range, by (joint kind, axis, upper bound?), for the left side and the
 # midline in MuJoCo's frame; right limbs swap the words of the x and z axes.
 _SAGITTAL_WORDS = {
@@ -151,7 +153,7 @@ def check_thresholds(thresholds: dict) -> dict[str, float]:
 # --------------------------------------------------------------------------------------------
 
 
-def _moving_average(x: np.ndarray, width: int) -> np.ndarray:
+def moving_average(x: np.ndarray, width: int) -> np.ndarray:
     """Centred moving average over `width` frames (fewer at the ends), (T,) -> (T,)."""
     if width <= 1 or len(x) == 0:
         return x.copy()
@@ -159,12 +161,6 @@ def _moving_average(x: np.ndarray, width: int) -> np.ndarray:
     num = np.convolve(x, kernel, mode="same")
     den = np.convolve(np.ones_like(x), kernel, mode="same")
     return num / den
-
-
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """Inclusive (first, last) frame ranges where `mask` (T,) is true."""
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return list(zip(np.flatnonzero(edges == 1).tolist(), (np.flatnonzero(edges == -1) - 1).tolist()))
 
 
 def _is_ballistic(com: np.ndarray, dt: float) -> bool:
@@ -179,19 +175,21 @@ def _is_ballistic(com: np.ndarray, dt: float) -> bool:
     return bool(deviation <= BALLISTIC_TOLERANCE and coef[1, 2] <= MAX_TAKEOFF_SPEED)
 
 
-def _floating_signal(m: Measurements) -> np.ndarray:
-    """(T,) length in seconds of the non-ballistic airborne stretch each frame is in (else 0)."""
-    dt = 1.0 / m.fps
-    out = np.zeros(m.num_frames)
-    for a, b in _runs(m.lowest > CONTACT_HEIGHT):
-        if not _is_ballistic(m.com[a : b + 1], dt):
+def floating_signal(lowest: np.ndarray, com: np.ndarray, fps: float) -> np.ndarray:
+    """(T,) length in seconds of the non-ballistic airborne stretch each frame is in (else 0),
+    from the height of the lowest body point (T,) and the centre of mass (T, 3)."""
+    dt = 1.0 / fps
+    out = np.zeros(len(lowest))
+    for a, b in runs(lowest > CONTACT_HEIGHT):
+        if not _is_ballistic(com[a : b + 1], dt):
             out[a : b + 1] = (b - a + 1) * dt
     return out
 
 
-def _skating_signal(m: Measurements) -> tuple[np.ndarray, np.ndarray]:
-    """(T,) largest distance one sole point slid on the floor within SKATE_WINDOW around each
-    frame, and (T,) which sole point (index into _SOLE_NAMES).
+def skating_signal(soles: np.ndarray, lowest: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """(T,) largest distance one sole point (soles: (T, 4, 3), in the order of SOLE_NAMES) slid on
+    the floor within SKATE_WINDOW around each frame, and (T,) which sole point; lowest: (T,)
+    height of the lowest body point.
 
     A heel or toe is on the floor when it is within CONTACT_HEIGHT of the floor and within
     SKATE_CONTACT_BAND of the lowest body point of the surrounding second (which follows a floor
@@ -199,14 +197,14 @@ def _skating_signal(m: Measurements) -> tuple[np.ndarray, np.ndarray]:
     it, so a foot that lands or takes off fast between two frames, a frame away from the floor,
     adds little; a foot that keeps sliding adds all of it.
     """
-    n = m.num_frames
+    n = len(soles)
     if n < 3:
         return np.zeros(n), np.zeros(n, dtype=int)
-    width = max(1, round(SKATE_WINDOW * m.fps))
-    floor = minimum_filter1d(m.lowest, size=width, mode="nearest")
-    z = m.soles[..., 2]  # (T, 4)
+    width = max(1, round(SKATE_WINDOW * fps))
+    floor = minimum_filter1d(lowest, size=width, mode="nearest")
+    z = soles[..., 2]  # (T, 4)
     on_floor = (z < CONTACT_HEIGHT) & (z < floor[:, None] + SKATE_CONTACT_BAND)
-    step = np.linalg.norm(np.diff(m.soles[..., :2], axis=0), axis=-1)  # (T-1, 4): t -> t+1
+    step = np.linalg.norm(np.diff(soles[..., :2], axis=0), axis=-1)  # (T-1, 4): t -> t+1
     slide = np.zeros((n, 4))
     slide[1:-1] = np.minimum(step[:-1], step[1:]) * (on_floor[:-2] & on_floor[1:-1] & on_floor[2:])
     windowed = np.stack([np.convolve(slide[:, k], np.ones(width), mode="same") for k in range(4)], axis=1)
@@ -236,30 +234,20 @@ def signals(m: Measurements) -> dict[str, np.ndarray]:
     width = max(1, round(RESIDUAL_WINDOW * m.fps))
     return {
         "penetration": np.maximum(-m.lowest, 0.0),
-        "floating": _floating_signal(m),
-        "foot_skating": _skating_signal(m)[0],
+        "floating": floating_signal(m.lowest, m.com, m.fps),
+        "foot_skating": skating_signal(m.soles, m.lowest, m.fps)[0],
         "self_penetration": m.self_depth,
         "joint_limits": np.rad2deg(m.limit_excess.max(axis=1)),
         "speed": speed.max(axis=1),
         "acceleration": accel.max(axis=1),
-        "root_force": _moving_average(m.residual_force, width),
-        "root_torque": _moving_average(m.residual_torque, width),
+        "root_force": moving_average(m.residual_force, width),
+        "root_torque": moving_average(m.residual_torque, width),
     }
 
 
 # --------------------------------------------------------------------------------------------
 # Report
 # --------------------------------------------------------------------------------------------
-
-
-def _span(ranges: list[tuple[int, int]], fps: float, limit: int = 4) -> str:
-    def one(a: int, b: int) -> str:
-        if a == b:
-            return f"frame {a} ({a / fps:.2f} s)"
-        return f"frames {a}-{b} ({a / fps:.2f}-{(b + 1) / fps:.2f} s)"
-
-    text = ", ".join(one(a, b) for a, b in ranges[:limit])
-    return text + (f" and {len(ranges) - limit} more stretches" if len(ranges) > limit else "")
 
 
 def _part(geom: str) -> str:
@@ -271,8 +259,6 @@ def _message(name: str, m: Measurements, sig: np.ndarray, threshold: float, rang
     """One sentence saying what a check found, in plain words."""
     worst = int(np.argmax(sig))
     value = float(sig[worst])
-    where = _span(ranges, m.fps) if ranges else f"worst at frame {worst}"
-    ok = not ranges
     if name == "penetration":
         if value == 0.0:
             return "nothing goes below the floor"
@@ -286,7 +272,7 @@ def _message(name: str, m: Measurements, sig: np.ndarray, threshold: float, rang
     elif name == "foot_skating":
         if value == 0.0:
             return "no foot slides on the floor"
-        point = _SOLE_NAMES[int(_skating_signal(m)[1][worst])]
+        point = SOLE_NAMES[int(skating_signal(m.soles, m.lowest, m.fps)[1][worst])]
         what = f"the {point} {100 * value:.0f} cm along the floor within {SKATE_WINDOW:g} s"
         allowed = f"{100 * threshold:.0f} cm"
     elif name == "self_penetration":
@@ -317,9 +303,7 @@ def _message(name: str, m: Measurements, sig: np.ndarray, threshold: float, rang
         unit = "N/kg" if name == "root_force" else "N m/kg"
         what = f"the body needs an external {kind} of {value:.1f} {unit} that the floor cannot give"
         allowed = f"{threshold:.1f} {unit}"
-    if ok:
-        return f"fine: at worst (frame {worst}) {what}; allowed {allowed}"
-    return f"{what} (allowed {allowed}) at {where}"
+    return sentence(what, allowed, worst, ranges, m.fps)
 
 
 def report(m: Measurements, thresholds: dict[str, float]) -> dict:
@@ -332,37 +316,19 @@ def report(m: Measurements, thresholds: dict[str, float]) -> dict:
     """
     thresholds = check_thresholds(thresholds)
     sig = signals(m)
-    checks = {}
-    for name in CHECKS:
-        s = sig[name]
-        threshold = float(thresholds[name])
-        ranges = _runs(s > threshold)
-        checks[name] = {
-            "value": float(s.max()) if len(s) else 0.0,
-            "threshold": threshold,
-            "unit": UNITS[name],
-            "passed": not ranges,
-            "frames": [[a, b] for a, b in ranges],
-            "worst_frame": int(np.argmax(s)) if len(s) else 0,
-            "message": _message(name, m, s, threshold, ranges),
-        }
-    failed = [n for n in CHECKS if not checks[n]["passed"]]
+    checks = {
+        name: check_entry(
+            sig[name],
+            thresholds[name],
+            UNITS[name],
+            lambda ranges, name=name: _message(name, m, sig[name], thresholds[name], ranges),
+        )
+        for name in CHECKS
+    }
     err = m.fit_error
     worst_joint = int(np.argmax(err.max(axis=0)))
-    need = min_frames(m.fps)
-    judged = m.num_frames >= need
-    problems = "; ".join(checks[n]["message"] for n in failed)
-    if not judged:
-        summary = f"too short to judge: {m.num_frames} frames, at least {need} needed ({need / m.fps:.1f} s)"
-        summary += f"; failing even so: {problems}" if failed else ""
-    else:
-        summary = "not plausible: " + problems if failed else "plausible: every check passed"
     return {
-        "plausible": (not failed) if judged else None,
-        "judged": judged,
-        "min_frames": need,
-        "summary": summary,
-        "failed": failed,
+        **verdict(checks, m.num_frames, min_frames(m.fps), m.fps),
         "frames": m.num_frames,
         "fps": m.fps,
         "duration_s": m.num_frames / m.fps,
@@ -432,40 +398,3 @@ def evaluate(
     thresholds missing a check; TypeError when `motion` is not a :class:`Motion`.
     """
     return evaluate_detailed(motion, mass, thresholds, track)[1]
-
-
-def _verdict(result: dict) -> str:
-    """The verdict line of :func:`format_report`."""
-    failed = ", ".join(result["failed"])
-    if not result.get("judged", True):
-        need = result["min_frames"]
-        return (
-            f"verdict: CANNOT BE JUDGED (too short: {result['frames']} frames, at least {need} "
-            f"needed, {need / result['fps']:.1f} s)" + (f"; failing even so: {failed}" if failed else "")
-        )
-    return "verdict: PLAUSIBLE" if result["plausible"] else f"verdict: NOT PLAUSIBLE (failed: {failed})"
-
-
-def format_report(result: dict, title: str | None = None) -> str:
-    """The report of :func:`evaluate` as readable lines of text."""
-    head = f"{title}: " if title else ""
-    lines = [
-        f"{head}{result['frames']} frames, {result['duration_s']:.2f} s at {result['fps']:g} fps, "
-        f"humanoid of {result['mass_kg']:g} kg"
-        + (
-            f" (resampled from {result['resampled_from_fps']:g} fps)"
-            if "resampled_from_fps" in result
-            else ""
-        ),
-        _verdict(result),
-        f"fit: the humanoid's joints are {result['fit_error']['mean_cm']:.1f} cm from the motion's on "
-        f"average (at most {result['fit_error']['max_cm']:.1f} cm, {result['fit_error']['worst_joint']})",
-    ]
-    for name, c in result["checks"].items():
-        mark = ("ok  " if result.get("judged", True) else "--  ") if c["passed"] else "FAIL"
-        lines.append(f"  [{mark}] {name:<16} {c['message']}")
-    if result.get("tracking"):
-        lines.append(f"tracking (not part of the verdict): {result['tracking']['message']}")
-    if result.get("video"):
-        lines.append(f"video: {result['video']}")
-    return "\n".join(lines)

@@ -8,6 +8,7 @@ input fails with a ValueError naming the argument instead of deep inside MuJoCo 
 A :class:`motion_env.Motion` checks its joints and rate when it is made, but its arrays can be
 changed afterwards (``motion.joints[5] = np.nan``, ``motion.fps = 0``), and :func:`measure`
 takes any object with ``joints`` and ``fps``: so the motion is checked again here.
+:func:`~motion_env.replay.robot.evaluate_robot` checks a robot's ``qpos`` with :func:`check_qpos`.
 """
 
 from __future__ import annotations
@@ -32,3 +33,27 @@ def check_motion(motion: Any, name: str = "motion") -> tuple[np.ndarray, float]:
     joints = check_joints(motion.joints, f"{name}.joints")
     fps = check_positive(motion.fps, f"{name}.fps", " of frames per second")
     return joints, fps
+
+
+def check_qpos(qpos: Any, nq: int, name: str = "qpos") -> np.ndarray:
+    """A robot trajectory ``(T, nq)`` as float64 with unit root quaternions (columns 3:7, w x y z,
+    normalised), or ValueError naming what is wrong: not a 2-D array of `nq` columns, no frame,
+    NaN or infinite values (naming the frames), a root quaternion far from unit length."""
+    try:
+        array = np.array(qpos, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be an array of numbers (T, {nq}), got {type(qpos).__name__}") from None
+    if array.ndim != 2 or array.shape[1] != nq or not len(array):
+        raise ValueError(f"{name} must have shape (T, {nq}) with T >= 1 (the model's nq), got {array.shape}")
+    bad = np.flatnonzero(~np.isfinite(array).all(axis=1))
+    if len(bad):
+        raise ValueError(f"{name} has NaN or infinite values at frames {bad[:10].tolist()}")
+    norm = np.linalg.norm(array[:, 3:7], axis=1)
+    off = np.flatnonzero(np.abs(norm - 1.0) > 0.01)
+    if len(off):
+        raise ValueError(
+            f"{name}: the root quaternion (columns 3:7, w x y z) is not of unit length at frames "
+            f"{off[:10].tolist()} (norm {norm[off[0]]:.3f})"
+        )
+    array[:, 3:7] /= norm[:, None]
+    return array

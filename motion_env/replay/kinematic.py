@@ -183,21 +183,28 @@ def measure(motion: Motion, mass: float = DEFAULT_MASS) -> Measurements:
 def inverse_dynamics(
     model: mujoco.MjModel, index: ModelIndex, qpos: np.ndarray, points: np.ndarray, dt: float
 ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`root_inverse_dynamics` of the humanoid, whose free root is the pelvis."""
+    return root_inverse_dynamics(model, int(index.joint_bodies[0]), qpos, points, dt)
+
+
+def root_inverse_dynamics(
+    model: mujoco.MjModel, root: int, qpos: np.ndarray, points: np.ndarray, dt: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Generalised forces of the replayed motion, split into what the floor supplies and the rest.
 
     ``mj_inverse`` (constraints off) gives the forces the motion needs, from finite-difference
     velocities and accelerations; the floor's share is the friction-cone force at the candidate
     points (T, P, 3) within CONTACT_HEIGHT of the floor that best supplies the root's wrench (non-
-    negative least squares). Returns ``(qfrc (T, nv), residual (T, 6))``: the joint torques with
-    the floor's forces accounted for (the root's entries are the residual), and the residual root
-    wrench: world force (3) and torque in the pelvis frame (3), in N and N m.
+    negative least squares). `root` is the body of the model's free joint, the first joint (the
+    humanoid's pelvis, a robot's base). Returns ``(qfrc (T, nv), residual (T, 6))``: the joint
+    torques with the floor's forces accounted for (the root's entries are the residual), and the
+    residual root wrench: world force (3) and torque in the root's frame (3), in N and N m.
     """
     n = len(qpos)
     qvel, qacc = _velocities(model, qpos, dt)
     inv = model.__copy__()
     inv.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
     data = mujoco.MjData(inv)
-    pelvis = int(index.joint_bodies[0])
     # Friction pyramid edges: the floor pushes up, with up to FRICTION times that sideways.
     edges = np.array(
         [[FRICTION, 0, 1], [-FRICTION, 0, 1], [0, FRICTION, 1], [0, -FRICTION, 1]], dtype=np.float64
@@ -215,7 +222,7 @@ def inverse_dynamics(
             continue
         jacs = []
         for p in near:
-            mujoco.mj_jac(inv, data, jacp, None, np.array([p[0], p[1], 0.0]), pelvis)
+            mujoco.mj_jac(inv, data, jacp, None, np.array([p[0], p[1], 0.0]), root)
             jacs.append(jacp.T @ edges)  # (nv, 4): generalised force of each edge's unit force
         basis = np.concatenate(jacs, axis=1)  # (nv, 4P)
         coef, _ = nnls(basis[:6], qfrc[t, :6], maxiter=200)
