@@ -17,18 +17,21 @@ from motion_env.motion.types import Motion
 
 if TYPE_CHECKING:
     from motion_env.generation.generator import MotionGenerator
+    from motion_env.retarget.api import retarget
 
 __version__ = "0.1.0"
-__all__ = ["Motion", "MotionGenerator", "load_bvh", "load_motion", "motion", "skeleton"]
+__all__ = ["Motion", "MotionGenerator", "load_bvh", "load_motion", "motion", "retarget", "skeleton"]
 
-_LAZY = {"MotionGenerator": "motion_env.generation.generator"}
+# Loaded on first use. `retarget` is a package that can be called as its function.
+_LAZY = {"MotionGenerator": "motion_env.generation.generator", "retarget": "motion_env.retarget"}
 
 
 def __getattr__(name: str) -> Any:
     if name in _LAZY:
         import importlib
 
-        return getattr(importlib.import_module(_LAZY[name]), name)
+        module = importlib.import_module(_LAZY[name])
+        return module if module.__name__ == f"{__name__}.{name}" else getattr(module, name)
     raise AttributeError(f"module 'motion_env' has no attribute {name!r}")
 
 

@@ -1,0 +1,49 @@
+"""A light zero-phase low-pass filter over a robot clip's qpos.
+
+The IK is warm-started frame to frame and damped, so its output is already continuous; the filter
+takes off the frame-to-frame jitter that stepping a few QP iterations per frame leaves. Positions
+and hinge angles are filtered as numbers; the quaternions of free and ball joints component-wise
+after putting consecutive ones in the same hemisphere, then normalised.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+
+__all__ = ["smooth_qpos"]
+
+
+def _quaternion_columns(model: mujoco.MjModel) -> list[int]:
+    """qpos index of the first (w) entry of every quaternion (free and ball joints)."""
+    out = []
+    for j in range(model.njnt):
+        a = int(model.jnt_qposadr[j])
+        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+            out.append(a + 3)
+        elif model.jnt_type[j] == mujoco.mjtJoint.mjJNT_BALL:
+            out.append(a)
+    return out
+
+
+def smooth_qpos(model: mujoco.MjModel, qpos: np.ndarray, sigma_frames: float) -> np.ndarray:
+    """`qpos` (T, nq) low-passed along time with a Gaussian of `sigma_frames` (a new array).
+
+    sigma_frames <= 0 returns a copy.
+    """
+    out = np.array(qpos, dtype=np.float64)
+    if sigma_frames <= 0 or out.shape[0] < 2:
+        return out
+    quats = _quaternion_columns(model)
+    for a in quats:
+        q = out[:, a : a + 4]
+        # q and -q are one rotation: flip each to the hemisphere of the previous frame.
+        flips = np.cumprod(np.where((q[1:] * q[:-1]).sum(-1) < 0, -1.0, 1.0))
+        q[1:] *= flips[:, None]
+    out = gaussian_filter1d(out, sigma_frames, axis=0, mode="nearest")
+    for a in quats:
+        q = out[:, a : a + 4]
+        q /= np.maximum(np.linalg.norm(q, axis=-1, keepdims=True), 1e-12)
+        q *= np.where(q[:, :1] < 0, -1.0, 1.0)  # w >= 0, as MuJoCo writes them
+    return out
