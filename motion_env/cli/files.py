@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 from motion_env.cli.common import CommandError, add_overwrite, check_new_file, check_suffix
 
@@ -76,15 +77,27 @@ def add_replay(sub: argparse._SubParsersAction) -> None:
         help="MuJoCo physical-plausibility report for a motion",
         description="Replay a motion (.npz or BVH) on a MuJoCo humanoid and report what is physically "
         "wrong: floor penetration, floating, foot skating, limbs through each other, joint limits, "
-        "speeds, accelerations and the root force the floor cannot supply. Exit code 0 whatever the "
-        "verdict, unless --strict.",
+        "speeds, accelerations and the root force the floor cannot supply. With --robot, retarget it "
+        "onto a humanoid robot (50 fps) first and judge the robot's qpos on the robot's own model "
+        "(joint ranges, floor, floating, foot skating, self-collision, root force). Exit code 0 "
+        "whatever the verdict, unless --strict.",
     )
     p.add_argument("file", help="a .npz written by Motion.save, or a .bvh / .bvh.gz file")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.add_argument("--video", default=None, help="also render the replay to this .mp4 (or .gif)")
     add_overwrite(p)
-    p.add_argument("--mass", type=float, default=70.0, help="body mass of the humanoid in kg (default 70)")
-    p.add_argument("--track", action="store_true", help="also simulate PD tracking (reported only)")
+    p.add_argument(
+        "--mass", type=float, default=None,
+        help="body mass of the humanoid in kg (default 70; not with --robot)",
+    )  # fmt: skip
+    p.add_argument(
+        "--track", action="store_true", help="also simulate PD tracking (reported only; not with --robot)"
+    )
+    p.add_argument(
+        "--robot", default=None, metavar="NAME_OR_MJCF",
+        help="judge the motion retargeted onto this robot instead: unitree_g1, booster_t1, a mapping "
+        "table (.json) or a humanoid MJCF (.xml); needs the optional mink package",
+    )  # fmt: skip
     p.add_argument("--thresholds", default=None, help="calibration JSON (default: the shipped one)")
     p.add_argument(
         "--strict",
@@ -98,7 +111,10 @@ def run_replay(args: argparse.Namespace) -> int:
     import json
     import os
 
-    if not (args.mass > 0):
+    if args.robot is not None and (args.mass is not None or args.track):
+        raise CommandError("--mass and --track are the humanoid's: they do not apply with --robot")
+    mass = 70.0 if args.mass is None else args.mass
+    if not (mass > 0):
         raise CommandError(f"--mass must be a positive number of kg, got {args.mass}")
     if args.video:
         _check_video(args.video, "--video", args.overwrite)  # a typo fails before the replay, not after it
@@ -110,7 +126,12 @@ def run_replay(args: argparse.Namespace) -> int:
     from motion_env.replay import evaluate_detailed, format_report
 
     motion = load_motion(args.file)
-    m, result = evaluate_detailed(motion, args.mass, args.thresholds, track=args.track)
+    if args.robot is not None:
+        result = _replay_robot(motion, args.robot, args.thresholds, args.video)
+        title = f"{args.file} on {result['robot']}"
+        print(json.dumps(result, indent=2) if args.json else format_report(result, title=title))
+        return _strict_exit(args, result)
+    m, result = evaluate_detailed(motion, mass, args.thresholds, track=args.track)
     if args.video:
         from motion_env.render.humanoid import render_humanoid_video
 
@@ -119,6 +140,32 @@ def run_replay(args: argparse.Namespace) -> int:
         except RuntimeError as exc:  # no offscreen OpenGL: say so in one line
             raise CommandError(str(exc)) from None
     print(json.dumps(result, indent=2) if args.json else format_report(result, title=args.file))
+    return _strict_exit(args, result)
+
+
+def _replay_robot(motion: Any, robot: str, thresholds: str | None, video: str | None) -> dict:
+    """The robot's plausibility report of `motion` retargeted onto `robot` at 50 fps."""
+    from motion_env.args import require
+
+    require("mink", "robots")  # imports mujoco
+    from motion_env.replay import evaluate_robot
+    from motion_env.retarget import load_robot, retarget
+
+    bot = load_robot(robot)  # an unknown name or a model that is not a humanoid fails here
+    robot_motion = retarget(motion, bot.key, fps=50)
+    result = evaluate_robot(robot_motion.qpos, bot.model, robot_motion.fps, thresholds)
+    if video:
+        from motion_env.retarget.video import render_robot_video
+
+        try:
+            result["video"] = str(render_robot_video(robot_motion, video))
+        except RuntimeError as exc:  # no offscreen OpenGL: say so in one line
+            raise CommandError(str(exc)) from None
+    return result
+
+
+def _strict_exit(args: argparse.Namespace, result: dict) -> int:
+    """1 (saying why) when --strict and the verdict is not PLAUSIBLE, else 0."""
     if args.strict and result.get("plausible") is not True:
         verdict = "too short to judge" if result.get("judged") is False else "NOT PLAUSIBLE"
         print(f"motion-env replay: {verdict} (--strict): exit code 1", file=sys.stderr)

@@ -236,6 +236,18 @@ class CharacterBatch:
         self.config = config
         self.obstacles = obstacles
         self.stream: Any = None
+        self.retargeter: Any = None  # a StreamRetargeter when the env emits robot qpos
+
+    def use_robot(self, robot: Any, batch: int) -> None:
+        """Also retarget every emitted frame onto `robot` (a name or an MJCF path; None: don't):
+        ``self.robot_qpos`` (B, nq) float32 after each :meth:`emit_frame`."""
+        if robot is None:
+            self.retargeter = None
+            return
+        from motion_env.retarget.stream import StreamRetargeter
+
+        self.retargeter = StreamRetargeter(robot, batch=batch)
+        self.robot_qpos = self.retargeter.qpos.astype(np.float32)
 
     # -- setup ---------------------------------------------------------------------------------
 
@@ -263,6 +275,8 @@ class CharacterBatch:
         self.joints = np.zeros((b, NUM_JOINTS, 3), np.float32)
         self.fresh = np.ones(b, bool)
         self.trails = [deque(maxlen=self.config.trail_length) for _ in range(b)]
+        if self.retargeter is not None:
+            self.retargeter.reset()
         self.stream = generator.stream(
             list(texts),
             waypoints=[r.copy() for r in self.routes],
@@ -280,6 +294,8 @@ class CharacterBatch:
         self.fresh[i] = True
         self.trails[i].clear()
         self.progress[i] = self.arrivals[i] = self.collisions[i] = 0.0
+        if self.retargeter is not None:
+            self.retargeter.reset(i)
         self.stream.reset(i, text, waypoints=route.copy(), start=np.asarray(start, np.float32))
 
     def _store_route(self, i: int, route: np.ndarray) -> np.ndarray:
@@ -355,6 +371,8 @@ class CharacterBatch:
         frame = np.asarray(self.stream.frame_index) - 1  # index of the frame just emitted
         self.joints = joints
         self.step_frames.append(joints)
+        if self.retargeter is not None:
+            self.robot_qpos = self.retargeter.step(joints).astype(np.float32)
         self.prev_pos = np.where(self.fresh[:, None], joints[:, 0, [0, 2]], self.pos)
         self.prev_theta = np.where(self.fresh, root[:, 2], self.theta)
         self.pos = joints[:, 0, [0, 2]].astype(np.float64)

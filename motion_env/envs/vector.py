@@ -50,7 +50,8 @@ class WaypointsVectorEnv(VectorEnv):
     ``reset(seed, options)`` resets every sub-environment; options ``text``, ``waypoints`` and
     ``start`` apply to all of them (a value left out is drawn per sub-environment). ``infos`` hold
     the per-env entries of :class:`WaypointsEnv`'s ``info`` as arrays with a leading N axis (and
-    Gymnasium's ``_name`` masks, all True).
+    Gymnasium's ``_name`` masks, all True); with ``robot=`` (as for :class:`WaypointsEnv`)
+    ``infos["robot_qpos"]`` is (N, nq) float32, each character's last frame on the robot.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": [], "render_fps": FPS}
@@ -65,6 +66,7 @@ class WaypointsVectorEnv(VectorEnv):
         render_mode: str | None = None,
         obstacles: np.ndarray | Sequence | None = None,
         device: str = "cpu",
+        robot: str | None = None,
         **config: Any,
     ) -> None:
         if int(num_envs) < 1:
@@ -88,6 +90,7 @@ class WaypointsVectorEnv(VectorEnv):
         self.text_pool, self.obstacles, self.generator, self._batch = build_characters(
             self.config, text_pool, obstacles, generator, model_path, device
         )
+        self._batch.use_robot(robot, self.num_envs)
         bound = np.float32(self.config.action_bound)
         self.single_action_space = spaces.Box(-bound, bound, (2,), np.float32)
         self.single_observation_space = observation_space()
@@ -198,6 +201,8 @@ class WaypointsVectorEnv(VectorEnv):
             "action_invalid": np.asarray(invalid, bool).copy(),
             **{name: np.asarray(value, np.float64).copy() for name, value in terms.items()},
         }
+        if batch.retargeter is not None:
+            info["robot_qpos"] = batch.robot_qpos.copy()
         for name in list(info):
             info[f"_{name}"] = np.ones(self.num_envs, bool)
         return info

@@ -144,7 +144,8 @@ def _shape_samples(model: mujoco.MjModel, g: int) -> tuple[np.ndarray, float]:
 
 
 class GeomPoints:
-    """Surface samples of a set of geoms, turned into world points of a pose at once."""
+    """Surface samples of a set of geoms, turned into world points of a pose at once: the one
+    lowest-point implementation of the package (the retargeter's floor uses it too)."""
 
     def __init__(self, model: mujoco.MjModel, geoms: np.ndarray) -> None:
         self.geoms = np.asarray(geoms, dtype=int)
@@ -167,6 +168,16 @@ class GeomPoints:
     def lowest_per_geom(self, points: np.ndarray) -> np.ndarray:
         """(G,) height of each geom's lowest point, from :meth:`bottoms`."""
         return np.minimum.reduceat(points[:, 2], self.starts)
+
+    def lowest(self, xpos: np.ndarray, xmat: np.ndarray) -> np.ndarray:
+        """(T, G) height of each geom's lowest point over many poses at once (no MjData).
+
+        xpos: (T, G, 3) the geoms' world positions; xmat: (T, G, 9) their orientations (MuJoCo's
+        row-major ``geom_xmat``), both in the order of ``self.geoms``.
+        """
+        down = xmat[:, self.owner, 6:9]  # (T, N, 3): how each local axis projects on world z
+        z = xpos[:, self.owner, 2] + np.einsum("tnj,nj->tn", down, self.local) - self.radius
+        return np.minimum.reduceat(z, self.starts, axis=1)
 
 
 def _side(name: str) -> str:

@@ -18,7 +18,9 @@ What is where (the stages in the order :func:`retarget` runs them):
   onto the robot as IK targets;
 - :mod:`.ik`: the warm-started differential IK (mink); :mod:`.smoothing`: the low-pass;
   :mod:`.limits`: joint ranges and speeds; :mod:`.floor`: the lowest point of the geoms;
-- :mod:`.api`: :func:`retarget`; :mod:`.result`: :class:`RobotMotion` and its CSV / npz files;
+- :mod:`.api`: :func:`retarget`; :mod:`.stream`: :class:`StreamRetargeter`, the same frame by
+  frame while a motion streams (causal: no low-pass); :mod:`.result`: :class:`RobotMotion` and
+  its CSV / npz files;
 - :mod:`.quality`: the numbers ``scripts/evaluate_retarget.py`` reports; :mod:`.video`: a video
   of a robot clip.
 
@@ -32,8 +34,17 @@ from motion_env.retarget.api import retarget
 from motion_env.retarget.ik import IKSettings
 from motion_env.retarget.result import RobotMotion, load_robot_motion
 from motion_env.retarget.robot import known_robots, load_robot
+from motion_env.retarget.stream import StreamRetargeter
 
-__all__ = ["IKSettings", "RobotMotion", "known_robots", "load_robot", "load_robot_motion", "retarget"]
+__all__ = [
+    "IKSettings",
+    "RobotMotion",
+    "StreamRetargeter",
+    "known_robots",
+    "load_robot",
+    "load_robot_motion",
+    "retarget",
+]
 
 
 class _CallableModule(types.ModuleType):

@@ -21,7 +21,7 @@ from motion_env.motion.rotations import quat_from_matrix
 from motion_env.retarget.robot import Robot
 from motion_env.retarget.targets import Targets
 
-__all__ = ["IKSettings", "solve_clip"]
+__all__ = ["FrameSolver", "IKSettings", "solve_clip"]
 
 
 @dataclass(frozen=True)
@@ -43,48 +43,83 @@ class IKSettings:
                 raise ValueError(f"IKSettings.{name} must be > 0, got {getattr(self, name)!r}")
 
 
-def solve_clip(robot: Robot, targets: Targets, settings: IKSettings = IKSettings()) -> np.ndarray:
-    """Joint positions that put the robot's frames on the targets, (T, nq) MuJoCo qpos."""
+def _mink():
     try:
         import mink
     except ImportError as exc:
         raise ImportError(
             'retargeting needs the optional mink package: pip install -c constraints.txt "motion-env[robots]"'
         ) from exc
+    return mink
 
-    model = robot.model
-    configuration = mink.Configuration(model)
-    tasks = [
-        mink.FrameTask(t.frame, t.type, position_cost=t.position_cost, orientation_cost=t.orientation_cost)
-        for t in robot.tasks
-    ]
-    posture = mink.PostureTask(model, cost=robot.table.posture_cost)
-    posture.set_target(robot.home)
-    limits = [mink.ConfigurationLimit(model)]
-    all_tasks = [*tasks, posture] if robot.table.posture_cost > 0 else tasks
 
-    num_frames = targets.positions.shape[0]
-    # SE3 targets as (w, x, y, z, x, y, z); a task with no position keeps 0 (its cost is 0).
-    poses = np.concatenate([quat_from_matrix(targets.rotations), np.nan_to_num(targets.positions)], axis=-1)
-    root = robot.root_qpos
-    q = robot.home.copy()
-    q[root : root + 3] = targets.root_position[0]
-    q[root + 3 : root + 7] = quat_from_matrix(targets.root_rotation[0])
-    out = np.empty((num_frames, model.nq))
-    dt = 1.0  # steps are displacements: no time scale
-    for t in range(num_frames):
-        if t > 0:
-            q[root : root + 3] += targets.root_position[t] - targets.root_position[t - 1]
+class FrameSolver:
+    """The IK of one robot, one frame at a time, each frame warm-started from the previous one.
+
+    :func:`solve_clip` runs it over a clip; :class:`motion_env.retarget.stream.StreamRetargeter`
+    runs one per character of a stream. :meth:`reset` makes the next frame a first frame again.
+    """
+
+    def __init__(self, robot: Robot, settings: IKSettings = IKSettings()) -> None:
+        mink = _mink()
+        self._mink, self.robot, self.settings = mink, robot, settings
+        model = robot.model
+        self.configuration = mink.Configuration(model)
+        self.tasks = [
+            mink.FrameTask(
+                t.frame, t.type, position_cost=t.position_cost, orientation_cost=t.orientation_cost
+            )
+            for t in robot.tasks
+        ]
+        posture = mink.PostureTask(model, cost=robot.table.posture_cost)
+        posture.set_target(robot.home)
+        self.limits = [mink.ConfigurationLimit(model)]
+        self.all_tasks = [*self.tasks, posture] if robot.table.posture_cost > 0 else self.tasks
+        self.reset()
+
+    def reset(self) -> None:
+        """Start over: the next frame starts from the home pose and takes ``first_iterations``."""
+        self._q: np.ndarray | None = None
+        self._root_target: np.ndarray | None = None
+
+    def solve(self, targets: Targets, t: int = 0) -> np.ndarray:
+        """(nq,) the solution of frame `t` of `targets` (a copy), warm-started from the last one."""
+        mink, robot, settings = self._mink, self.robot, self.settings
+        root = robot.root_qpos
+        first = self._q is None
+        if first:
+            q = robot.home.copy()
+            q[root : root + 3] = targets.root_position[t]
+            q[root + 3 : root + 7] = quat_from_matrix(targets.root_rotation[t])
+        else:
+            q = self._q
+            q[root : root + 3] += targets.root_position[t] - self._root_target
+        # SE3 targets as (w, x, y, z, x, y, z); a task with no position keeps 0 (its cost is 0).
+        poses = np.concatenate(
+            [quat_from_matrix(targets.rotations[t]), np.nan_to_num(targets.positions[t])], axis=-1
+        )
+        configuration = self.configuration
         configuration.update(q)
-        for task, pose in zip(tasks, poses[t]):
+        for task, pose in zip(self.tasks, poses):
             task.set_target(mink.SE3(pose))
-        for _ in range(settings.first_iterations if t == 0 else settings.iterations):
+        dt = 1.0  # steps are displacements: no time scale
+        for _ in range(settings.first_iterations if first else settings.iterations):
             step = mink.solve_ik(
-                configuration, all_tasks, dt, solver="daqp", damping=settings.damping, limits=limits
+                configuration, self.all_tasks, dt, solver="daqp", damping=settings.damping, limits=self.limits
             )
             configuration.integrate_inplace(step, dt)
             if np.abs(step).max() < settings.tolerance:
                 break
-        q = configuration.q.copy()
-        out[t] = q
+        self._q = configuration.q.copy()
+        self._root_target = np.array(targets.root_position[t], dtype=np.float64)
+        return self._q.copy()
+
+
+def solve_clip(robot: Robot, targets: Targets, settings: IKSettings = IKSettings()) -> np.ndarray:
+    """Joint positions that put the robot's frames on the targets, (T, nq) MuJoCo qpos."""
+    solver = FrameSolver(robot, settings)
+    num_frames = targets.positions.shape[0]
+    out = np.empty((num_frames, robot.model.nq))
+    for t in range(num_frames):
+        out[t] = solver.solve(targets, t)
     return out

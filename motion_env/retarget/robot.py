@@ -20,7 +20,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from motion_env.retarget.floor import GeomSet, collision_geoms
+from motion_env.retarget.floor import GeomPoints, collision_geoms
 from motion_env.retarget.limits import clip_to_limits
 from motion_env.retarget.table import RobotTable, Task, read_table
 
@@ -81,7 +81,7 @@ class Robot:
         rest_rotations: (len(tasks), 3, 3) orientation of each task's frame in that pose.
         rest_root: (3,) the root body's position in that pose.
         rest_sole: height of the lowest foot point in that pose.
-        feet: "left", "right" -> the :class:`~motion_env.retarget.floor.GeomSet` of each foot;
+        feet: "left", "right" -> the :class:`~motion_env.retarget.floor.GeomPoints` of each foot;
             foot_geoms: both; body_geoms: every collision geom of the robot.
         rest_feet: "left", "right" -> (G, 3) positions and (G, 9) orientations of the foot's
             geoms in the rest pose.
@@ -102,14 +102,14 @@ class Robot:
             t for t in table.tasks if t.position_cost > 0 or t.orientation_cost > 0
         )
         self._frame_ids = {(t.type, t.frame): _name_id(model, t.type, t.frame, where) for t in table.tasks}
-        self.feet: dict[str, GeomSet] = {}
+        self.feet: dict[str, GeomPoints] = {}
         for side, foot in table.feet.items():
             geoms = collision_geoms(model, _subtree(model, [_name_id(model, "body", foot, where)]))
             if geoms.size == 0:
                 raise ValueError(f"{where}: the {side} foot {foot!r} has no geoms to stand on")
-            self.feet[side] = GeomSet(model, geoms)
-        self.foot_geoms = GeomSet(model, np.concatenate([g.ids for g in self.feet.values()]))
-        self.body_geoms = GeomSet(model, collision_geoms(model))
+            self.feet[side] = GeomPoints(model, geoms)
+        self.foot_geoms = GeomPoints(model, np.concatenate([g.geoms for g in self.feet.values()]))
+        self.body_geoms = GeomPoints(model, collision_geoms(model))
         self.home = self._home(where)
         self._rest(table)
 
@@ -131,12 +131,12 @@ class Robot:
         self.rest_points = {t.human: self.frame_position(data, t).copy() for t in table.tasks if t.human}
         self.rest_rotations = np.stack([self.frame_rotation(data, t) for t in self.tasks])
         self.rest_root = data.xpos[self.root].copy()
-        ids = self.foot_geoms.ids
+        ids = self.foot_geoms.geoms
         self.rest_sole = float(
             self.foot_geoms.lowest(data.geom_xpos[ids][None], data.geom_xmat[ids][None]).min()
         )
         self.rest_feet = {
-            side: (data.geom_xpos[g.ids].copy(), data.geom_xmat[g.ids].copy())
+            side: (data.geom_xpos[g.geoms].copy(), data.geom_xmat[g.geoms].copy())
             for side, g in self.feet.items()
         }
 
@@ -145,7 +145,7 @@ class Robot:
         data = mujoco.MjData(self.model)
         num_frames = qpos.shape[0]
         frames = np.empty((num_frames, len(self.tasks), 3))
-        geoms = np.concatenate([self.foot_geoms.ids, self.body_geoms.ids])
+        geoms = np.concatenate([self.foot_geoms.geoms, self.body_geoms.geoms])
         xpos = np.empty((num_frames, geoms.size, 3))
         xmat = np.empty((num_frames, geoms.size, 9))
         for t in range(num_frames):
@@ -153,7 +153,7 @@ class Robot:
             mujoco.mj_kinematics(self.model, data)
             frames[t] = [self.frame_position(data, task) for task in self.tasks]
             xpos[t], xmat[t] = data.geom_xpos[geoms], data.geom_xmat[geoms]
-        feet = self.foot_geoms.ids.size
+        feet = self.foot_geoms.geoms.size
         return Kinematics(
             frame_positions=frames,
             foot_lowest=self.foot_geoms.lowest(xpos[:, :feet], xmat[:, :feet]).min(axis=1),

@@ -30,7 +30,7 @@ from motion_env.replay.humanoid import rest_positions, to_mujoco
 from motion_env.retarget.human import LIMBS, frames, limb_length, rest_relative
 from motion_env.retarget.robot import Robot
 
-__all__ = ["Targets", "compute_targets", "foot_clearance", "human_clearance"]
+__all__ = ["Targets", "compute_targets", "foot_clearance", "human_clearance", "limb_scales"]
 
 # Trunk joints and the segment they turn with (the rest are limb joints, see human.LIMBS).
 _TRUNK_SEGMENT = {
@@ -130,16 +130,29 @@ def _plant_feet(
         points[ankle][:, 2] += heights[side] - geoms.lowest(xpos, xmat).min(axis=1)
 
 
-def compute_targets(robot: Robot, joints: np.ndarray) -> Targets:
+def limb_scales(robot: Robot, joints: np.ndarray) -> tuple[float, float]:
+    """(leg scale, arm scale) of `robot` for a human clip (T, 22, 3), motion axes: robot limb length
+    / the human's median limb length over the frames."""
+    joints = to_mujoco(joints).astype(np.float64)
+    return _limb_scale(robot, joints, "leg"), _limb_scale(robot, joints, "arm")
+
+
+def compute_targets(robot: Robot, joints: np.ndarray, scales: tuple[float, float] | None = None) -> Targets:
     """IK targets for `robot` from a human clip.
 
     joints: (T, 22, 3) world joint positions in the motion's axes (Y up, facing +Z).
+    scales: (leg scale, arm scale), default :func:`limb_scales` of the clip. With the scales
+    given, each frame's targets depend on that frame alone, so a stream can compute them one
+    frame at a time (:class:`motion_env.retarget.stream.StreamRetargeter`).
     """
     clearance = foot_clearance(joints)
     joints = to_mujoco(joints).astype(np.float64)  # (T, 22, 3): x forward, y left, z up
     turn = rest_relative(frames(joints))  # segment -> (T, 3, 3)
-    leg_scale = _limb_scale(robot, joints, "leg")
-    arm_scale = _limb_scale(robot, joints, "arm")
+    if scales is None:
+        leg_scale = _limb_scale(robot, joints, "leg")
+        arm_scale = _limb_scale(robot, joints, "arm")
+    else:
+        leg_scale, arm_scale = float(scales[0]), float(scales[1])
     num_frames = joints.shape[0]
 
     def human(name: str) -> np.ndarray:

@@ -79,3 +79,23 @@ def test_refuses_to_replace_a_video(tmp_path: Path, standing_clip, capsys) -> No
         == f"motion-env replay: error: {video} exists: nothing was written (pass --overwrite to replace it)"
     )
     assert video.read_bytes() == b"keep"
+
+
+def test_robot_replay_judges_the_retargeted_clip(tmp_path: Path, standing_clip, capsys) -> None:
+    pytest.importorskip("mink", reason="the optional 'robots' extra (mink) is not installed")
+    still = standing_clip(1.5).save(tmp_path / "still.npz")
+    raised = corruptions.raised(standing_clip(1.5), seconds=0.5, start=10).save(tmp_path / "raised.npz")
+    assert main(["replay", str(still), "--robot", "unitree_g1", "--strict"]) == 0
+    out = capsys.readouterr().out
+    assert "verdict: PLAUSIBLE" in out and "joint_limits" in out and "self_collision" in out
+    assert main(["replay", str(raised), "--robot", "unitree_g1", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["plausible"] is False and "floating" in result["failed"]
+    assert result["fps"] == 50 and "self_collision" in result["checks"]  # the robot's checks
+    assert main(["replay", str(raised), "--robot", "unitree_g1", "--strict"]) == 1
+    assert "NOT PLAUSIBLE (--strict)" in capsys.readouterr().err
+    # The humanoid's own flags do not apply; an unknown robot fails in one line.
+    assert main(["replay", str(still), "--robot", "unitree_g1", "--mass", "60"]) == 2
+    assert "do not apply with --robot" in capsys.readouterr().err
+    assert main(["replay", str(still), "--robot", "no_such_robot"]) == 2
+    assert "unknown robot" in capsys.readouterr().err

@@ -44,7 +44,7 @@ def test_table_loads_and_fits_the_model(name: str) -> None:
     tracked = {t.human for t in robot.tasks if t.position_cost > 0}
     assert {"left_hip", "right_hip", "left_ankle", "right_ankle", "left_wrist", "right_wrist"} <= tracked
     assert {t.orientation for t in robot.tasks} >= {"pelvis", "torso", "left_foot", "right_foot"}
-    assert robot.foot_geoms.ids.size > 0
+    assert robot.foot_geoms.geoms.size > 0
     # The robot stands in its rest pose: legs below the hips, the feet the lowest part.
     assert robot.rest_points["left_ankle"][2] < robot.rest_points["left_hip"][2] - 0.4
     assert robot.rest_points["left_ankle"][1] > 0 > robot.rest_points["right_ankle"][1]  # left is +y
