@@ -11,15 +11,17 @@ from motion_env.cli.common import CommandError, add_overwrite, check_new_file, c
 __all__ = ["add_export", "run_export"]
 
 
+_EXPORT_HELP = "write a motion (.npz or BVH) as a BVH and/or a robot-ready .npz for the MuJoCo humanoid"
+_EXPORT_DESCRIPTION = (
+    "Write a motion as a BVH on the canonical skeleton (centimetres, ZXY Euler angles, the motion's "
+    "frame rate) and/or as a reference for the replay's MuJoCo humanoid (.npz: qpos, root position "
+    "and quaternion, local joint quaternions (w, x, y, z), foot contacts). The formats are described "
+    "in docs/conventions.md, 'Export'."
+)
+
+
 def add_export(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "export",
-        help="write a motion (.npz or BVH) as a BVH and/or a robot-ready .npz for the MuJoCo humanoid",
-        description="Write a motion as a BVH on the canonical skeleton (centimetres, ZXY Euler angles, "
-        "the motion's frame rate) and/or as a reference for the replay's MuJoCo humanoid (.npz: qpos, "
-        "root position and quaternion, local joint quaternions (w, x, y, z), foot contacts). The formats "
-        "are described in docs/conventions.md, 'Export'.",
-    )
+    p = sub.add_parser("export", help=_EXPORT_HELP, description=_EXPORT_DESCRIPTION)
     p.add_argument("file", help="a .npz written by Motion.save, or a .bvh / .bvh.gz file")
     p.add_argument("--bvh", default=None, help="BVH file to write (.bvh, or .bvh.gz to compress it)")
     p.add_argument("--humanoid-npz", default=None, help="humanoid reference to write (.npz)")

@@ -71,17 +71,19 @@ def run_show(args: argparse.Namespace) -> int:
     return 0
 
 
+_REPLAY_HELP = "MuJoCo physical-plausibility report for a motion"
+_REPLAY_DESCRIPTION = (
+    "Replay a motion (.npz or BVH) on a MuJoCo humanoid and report what is physically wrong: floor "
+    "penetration, floating, foot skating, limbs through each other, joint limits, speeds, "
+    "accelerations and the root force the floor cannot supply. With --robot, retarget it onto a "
+    "humanoid robot (50 fps) first and judge the robot's qpos on the robot's own model (joint ranges, "
+    "floor, floating, foot skating, self-collision, root force). Exit code 0 whatever the verdict, "
+    "unless --strict."
+)
+
+
 def add_replay(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "replay",
-        help="MuJoCo physical-plausibility report for a motion",
-        description="Replay a motion (.npz or BVH) on a MuJoCo humanoid and report what is physically "
-        "wrong: floor penetration, floating, foot skating, limbs through each other, joint limits, "
-        "speeds, accelerations and the root force the floor cannot supply. With --robot, retarget it "
-        "onto a humanoid robot (50 fps) first and judge the robot's qpos on the robot's own model "
-        "(joint ranges, floor, floating, foot skating, self-collision, root force). Exit code 0 "
-        "whatever the verdict, unless --strict.",
-    )
+    p = sub.add_parser("replay", help=_REPLAY_HELP, description=_REPLAY_DESCRIPTION)
     p.add_argument("file", help="a .npz written by Motion.save, or a .bvh / .bvh.gz file")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.add_argument("--video", default=None, help="also render the replay to this .mp4 (or .gif)")

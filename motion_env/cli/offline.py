@@ -16,19 +16,21 @@ from motion_env.cli.common import CommandError, CommandParser, add_threads, set_
 __all__ = ["add_data", "add_train"]
 
 
+_BUILD_HELP = "BVH folders -> a HumanML3D-layout dataset directory"
+_BUILD_DESCRIPTION = (
+    "Import every .bvh / .bvh.gz under the given folders onto the canonical skeleton and write a "
+    "HumanML3D-layout dataset (new_joints/, new_joint_vecs/, texts/, train/val/test.txt, Mean.npy, "
+    "Std.npy) with captions made from the file names (Bandai Namco labels, CMU-INDEX.md descriptions, "
+    "or the file-name words; a <stem>.txt next to a BVH file gives its captions)."
+)
+
+
 def add_data(sub: argparse._SubParsersAction) -> None:
     from motion_env.data.captions import DEFAULT_NUM_CAPTIONS
 
     p = sub.add_parser("data", help="build training datasets")
     dsub = p.add_subparsers(dest="data_command", required=True)
-    b = dsub.add_parser(
-        "build",
-        help="BVH folders -> a HumanML3D-layout dataset directory",
-        description="Import every .bvh / .bvh.gz under the given folders onto the canonical skeleton "
-        "and write a HumanML3D-layout dataset (new_joints/, new_joint_vecs/, texts/, train/val/test.txt, "
-        "Mean.npy, Std.npy) with captions made from the file names (Bandai Namco labels, CMU-INDEX.md "
-        "descriptions, or the file-name words; a <stem>.txt next to a BVH file gives its captions).",
-    )
+    b = dsub.add_parser("build", help=_BUILD_HELP, description=_BUILD_DESCRIPTION)
     b.add_argument("sources", nargs="+", help="folders searched recursively for .bvh / .bvh.gz files")
     b.add_argument(
         "--out", required=True, help="output directory (must be empty or not exist, unless --overwrite)"
@@ -148,14 +150,16 @@ class TrainParser(CommandParser):
         return super().format_help()
 
 
+_TRAIN_HELP = "train one model of the generator (VQ-VAE, then GPT; controller any time)"
+_TRAIN_DESCRIPTION = (
+    "Train one model of the generator. Each model's options are its trainer's settings (motion-env "
+    "train MODEL --help lists them with their defaults). An existing --out checkpoint is resumed "
+    "from."
+)
+
+
 def add_train(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "train",
-        help="train one model of the generator (VQ-VAE, then GPT; controller any time)",
-        description="Train one model of the generator. Each model's options are its trainer's settings "
-        "(motion-env train MODEL --help lists them with their defaults). An existing --out checkpoint "
-        "is resumed from.",
-    )
+    p = sub.add_parser("train", help=_TRAIN_HELP, description=_TRAIN_DESCRIPTION)
     models = p.add_subparsers(dest="model", required=True, metavar="MODEL", parser_class=TrainParser)
     for model, (_, _, what) in _TRAINERS.items():
         m = models.add_parser(model, help=what, description=f"Train {what}.", model=model)
