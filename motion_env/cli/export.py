@@ -1,5 +1,8 @@
-"""`motion-env export`: a motion file (.npz or BVH) as a BVH on the canonical skeleton and/or a
-robot-ready `.npz` for the replay humanoid. Neither uses torch; the humanoid file needs MuJoCo."""
+"""Write a motion as a BVH on the canonical skeleton (centimetres, ZXY Euler angles, the motion's
+frame rate) and/or as a reference for the replay's MuJoCo humanoid (.npz: qpos, root position and
+quaternion, local joint quaternions (w, x, y, z), foot contacts). The formats are described in
+docs/conventions.md, 'Export'.
+"""
 
 from __future__ import annotations
 
@@ -12,16 +15,10 @@ __all__ = ["add_export", "run_export"]
 
 
 _EXPORT_HELP = "write a motion (.npz or BVH) as a BVH and/or a robot-ready .npz for the MuJoCo humanoid"
-_EXPORT_DESCRIPTION = (
-    "Write a motion as a BVH on the canonical skeleton (centimetres, ZXY Euler angles, the motion's "
-    "frame rate) and/or as a reference for the replay's MuJoCo humanoid (.npz: qpos, root position "
-    "and quaternion, local joint quaternions (w, x, y, z), foot contacts). The formats are described "
-    "in docs/conventions.md, 'Export'."
-)
 
 
 def add_export(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("export", help=_EXPORT_HELP, description=_EXPORT_DESCRIPTION)
+    p = sub.add_parser("export", help=_EXPORT_HELP, description=__doc__)
     p.add_argument("file", help="a .npz written by Motion.save, or a .bvh / .bvh.gz file")
     p.add_argument("--bvh", default=None, help="BVH file to write (.bvh, or .bvh.gz to compress it)")
     p.add_argument("--humanoid-npz", default=None, help="humanoid reference to write (.npz)")

@@ -1,5 +1,9 @@
-"""`motion-env retarget`: a motion file (.npz or BVH) onto a humanoid robot, as MuJoCo qpos (.csv
-or .npz) and optionally a video of the robot. No torch; needs MuJoCo and the optional `mink`."""
+"""Retarget a motion onto a humanoid robot (Unitree G1, Booster T1, or any humanoid MJCF): scaled to
+the robot's size, feet on the floor, every joint inside its range. Writes one row of MuJoCo qpos
+per frame (.csv: root x, y, z, quaternion w, x, y, z, then the joints, named in the header) or
+GMR's fields (.npz: root_pos, root_rot in xyzw order, dof_pos, fps, joint_names). Needs the
+optional mink package (pip install 'motion-env[robots]').
+"""
 
 from __future__ import annotations
 
@@ -12,17 +16,10 @@ __all__ = ["add_retarget", "run_retarget"]
 
 
 _RETARGET_HELP = "retarget a motion (.npz or BVH) onto a humanoid robot: MuJoCo qpos as .csv or .npz"
-_RETARGET_DESCRIPTION = (
-    "Retarget a motion onto a humanoid robot (Unitree G1, Booster T1, or any humanoid MJCF): scaled "
-    "to the robot's size, feet on the floor, every joint inside its range. Writes one row of MuJoCo "
-    "qpos per frame (.csv: root x, y, z, quaternion w, x, y, z, then the joints, named in the header) "
-    "or GMR's fields (.npz: root_pos, root_rot in xyzw order, dof_pos, fps, joint_names). Needs the "
-    "optional mink package (pip install 'motion-env[robots]')."
-)
 
 
 def add_retarget(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("retarget", help=_RETARGET_HELP, description=_RETARGET_DESCRIPTION)
+    p = sub.add_parser("retarget", help=_RETARGET_HELP, description=__doc__)
     p.add_argument("file", help="a .npz written by Motion.save, or a .bvh / .bvh.gz file")
     p.add_argument(
         "--robot", default="unitree_g1",

@@ -16,6 +16,7 @@ that only helps when mujoco has not been imported yet.
 from __future__ import annotations
 
 import os
+from contextlib import closing
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -129,8 +130,7 @@ def render_humanoid_video(
         verdict = "plausible" if report["plausible"] else "not plausible: " + ", ".join(report["failed"])
 
     fps = m.fps
-    writer = VideoWriter(path, fps)
-    try:
+    with closing(renderer), VideoWriter(path, fps) as writer:
         for t in range(m.num_frames):
             data.qpos[:] = m.qpos[t]
             mujoco.mj_forward(model, data)
@@ -150,12 +150,6 @@ def render_humanoid_video(
                 labels[text] = _text_image(text, 26, "#ff5050" if problems[t] else "white")
             _blit(frame, labels[text], 4, 6)
             writer.append(frame)
-    except BaseException:
-        writer.abort()
-        raise
-    finally:
-        renderer.close()
-    writer.close()
     return path
 
 

@@ -57,7 +57,8 @@ class VideoWriter:
     """Streams RGB frames to an .mp4 (ffmpeg, H.264) or a .gif (Pillow, a palette per frame).
 
     Call :meth:`append` per frame, then :meth:`close`; on an error, :meth:`abort` removes the
-    half-written file. The type is the suffix of `path` (:func:`check_video_path`).
+    half-written file. As a context manager (``with VideoWriter(path, fps) as writer:``) it closes
+    on success and aborts on an error. The type is the suffix of `path` (:func:`check_video_path`).
     """
 
     def __init__(self, path: str | Path, fps: float) -> None:
@@ -73,6 +74,15 @@ class VideoWriter:
                 self.path, format="FFMPEG", fps=self.fps, codec="libx264", quality=7,
                 pixelformat="yuv420p", macro_block_size=2,
             )  # fmt: skip
+
+    def __enter__(self) -> VideoWriter:
+        return self
+
+    def __exit__(self, error: type[BaseException] | None, *_: object) -> None:
+        if error is None:
+            self.close()
+        else:
+            self.abort()
 
     def append(self, frame: np.ndarray) -> None:
         """Add one (height, width, 3) uint8 RGB frame."""
@@ -189,8 +199,7 @@ def render_video(
     renderer = SkeletonRenderer(width, height, cam)
 
     indices = frame_indices(motion.num_frames, motion.fps, fps)
-    writer = VideoWriter(path, fps)
-    try:
+    with VideoWriter(path, fps) as writer:
         for i, src in enumerate(indices):
             # An output frame stands for every source frame until the next one: flag it if any is.
             stop = indices[i + 1] if i + 1 < len(indices) else motion.num_frames
@@ -212,8 +221,4 @@ def render_video(
                 inset_bounds=bounds,
             )
             writer.append(frame)
-    except BaseException:
-        writer.abort()
-        raise
-    writer.close()
     return path

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import copy
 import os
+from contextlib import closing
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -80,18 +81,11 @@ def render_robot_video(
     padded = np.pad(root[:, :2], ((k // 2, k - 1 - k // 2), (0, 0)), mode="edge")
     follow = np.stack([np.convolve(padded[:, i], np.ones(k) / k, "valid") for i in range(2)], axis=1)
     height_m = float(np.median(root[:, 2]))
-    writer = VideoWriter(path, fps)
-    try:
+    with closing(renderer), VideoWriter(path, fps) as writer:
         for t in frame_indices(motion.num_frames, motion.fps, fps):
             data.qpos[:] = motion.qpos[t]
             mujoco.mj_forward(model, data)
             camera.lookat[:] = (follow[t, 0], follow[t, 1], 0.7 * height_m)
             renderer.update_scene(data, camera)
             writer.append(renderer.render().copy())
-    except BaseException:
-        writer.abort()
-        raise
-    finally:
-        renderer.close()
-    writer.close()
     return path
