@@ -70,28 +70,25 @@ def test_edit_path_midrollout(tmp_path):
     assert sorted(result["edits_at_frame"].values()) == [3, 6, 10]
 
 
-def test_sb3_ppo(tmp_path):
-    pytest.importorskip("stable_baselines3", reason="the optional 'rl' extra is not installed")
-    result = _run(
-        "sb3_ppo", tmp_path,
-        "--total-timesteps", "32", "--n-steps", "16", "--batch-size", "8", "--frames-per-step", "2",
-        "--episode-steps", "10", "--eval-steps", "5",
-    )  # fmt: skip
-    motion = _check_outputs(tmp_path, "sb3_ppo_eval")
-    assert motion.num_frames == 1 + 5 * 2 and np.isfinite(result["eval_return"])
-    assert (tmp_path / "ppo_waypoints.zip").is_file()
+# The two RL examples (the optional "rl" extra): a few steps of training, then the evaluation rollout.
+RL_EXAMPLES = {
+    "sb3_ppo": (["--total-timesteps", "32", "--n-steps", "16", "--episode-steps", "10"], "ppo_waypoints.zip"),
+    "goal_reach_her": (["--total-timesteps", "24", "--learning-starts", "12", "--episode-steps", "6"],
+                       "sac_her_goal_reach.zip"),
+}  # fmt: skip
 
 
-def test_goal_reach_her(tmp_path):
+@pytest.mark.parametrize("name", sorted(RL_EXAMPLES))
+def test_rl_examples(tmp_path, name):
     pytest.importorskip("stable_baselines3", reason="the optional 'rl' extra is not installed")
-    result = _run(
-        "goal_reach_her", tmp_path,
-        "--total-timesteps", "24", "--learning-starts", "12", "--batch-size", "8", "--frames-per-step", "2",
-        "--episode-steps", "6", "--eval-steps", "5",
-    )  # fmt: skip
-    motion = _check_outputs(tmp_path, "goal_reach_her_eval")
-    assert motion.num_frames == 1 + 5 * 2 and isinstance(result["eval_success"], bool)
-    assert (tmp_path / "sac_her_goal_reach.zip").is_file()
+    flags, model_file = RL_EXAMPLES[name]
+    result = _run(name, tmp_path, *flags, "--batch-size", "8", "--frames-per-step", "2", "--eval-steps", "5")
+    motion = _check_outputs(tmp_path, f"{name}_eval")
+    assert motion.num_frames == 1 + 5 * 2 and result["eval_frames"] == motion.num_frames
+    assert (tmp_path / model_file).is_file()
+    assert (
+        np.isfinite(result["eval_return"]) if name == "sb3_ppo" else isinstance(result["eval_success"], bool)
+    )
 
 
 @pytest.mark.slow

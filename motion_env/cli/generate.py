@@ -40,11 +40,8 @@ def add_generate(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--video", default=None, help="also render a stick-figure video (.mp4 or .gif)")
     p.add_argument("--plot", default=None, help="also draw a top-down plot of the path (.png)")
     add_overwrite(p)
-    p.add_argument(
-        "--infeasible", choices=("raise", "warn"), default="raise",
-        help="timed waypoints faster than a person can go: an error (raise, the default), or "
-        "retimed to the fastest feasible frame with a warning (warn)",
-    )  # fmt: skip
+    infeasible = "timed waypoints faster than a person: an error (raise) or retimed with a warning (warn)"
+    p.add_argument("--infeasible", choices=("raise", "warn"), default="raise", help=infeasible)
     p.add_argument("--model", default=None, help="weights directory (default: the shipped model)")
     p.add_argument(
         "--random-model",

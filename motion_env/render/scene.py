@@ -71,13 +71,9 @@ def as_xz(points: np.ndarray | Sequence | None, what: str) -> np.ndarray | None:
 
 def as_waypoints(waypoints: np.ndarray | Sequence | None) -> np.ndarray | None:
     """(K, 2) / (K, 3) -> (K, 3) with the time column NaN for untimed waypoints."""
-    if waypoints is None:
+    if as_xz(waypoints, "waypoints") is None:  # shape and finite x, z
         return None
     arr = np.asarray(waypoints, dtype=np.float64)
-    if arr.ndim != 2 or arr.shape[1] not in (2, 3):
-        raise ValueError(f"waypoints must have shape (K, 2) or (K, 3), got {arr.shape}")
-    if not np.isfinite(arr[:, :2]).all():
-        raise ValueError("waypoints have NaN or infinite coordinates")
     if arr.shape[1] == 2:
         arr = np.concatenate([arr, np.full((len(arr), 1), np.nan)], axis=1)
     bad = np.flatnonzero(np.isinf(arr[:, 2]) | (arr[:, 2] < 0))

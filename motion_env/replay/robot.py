@@ -217,26 +217,14 @@ def robot_report(m: RobotMeasurements, thresholds: dict[str, float]) -> dict:
     }
 
 
-def evaluate_robot_detailed(
-    qpos: np.ndarray,
-    model: mujoco.MjModel | str | Path,
-    fps: float,
-    thresholds: dict[str, float] | str | Path | None = None,
-    feet: tuple[str, str] | None = None,
-) -> tuple[RobotMeasurements, dict]:
-    """:func:`evaluate_robot`, also returning the per-frame measurements."""
-    thresholds = load_robot_thresholds(thresholds)
-    m = measure_robot(qpos, model, fps, feet)
-    return m, robot_report(m, thresholds)
-
-
 def evaluate_robot(
     qpos: np.ndarray,
     model: mujoco.MjModel | str | Path,
     fps: float,
     thresholds: dict[str, float] | str | Path | None = None,
     feet: tuple[str, str] | None = None,
-) -> dict:
+    measurements: bool = False,
+) -> dict | tuple[RobotMeasurements, dict]:
     """Judge robot trajectory `qpos` (T, model.nq) at `fps` on `model` (a ``mujoco.MjModel`` or
     the path of an MJCF scene, free root first: x, y, z, qw, qx, qy, qz, then the joints).
 
@@ -248,11 +236,15 @@ def evaluate_robot(
     :data:`ROBOT_CHECKS`: ``value``, ``threshold``, ``unit``, ``passed``, ``frames`` as inclusive
     [first, last] ranges, ``worst_frame``, ``message``).
     thresholds: see :func:`load_robot_thresholds`; feet: the (left, right) foot bodies, found
-    from the body names by default (:func:`.robot_kinematic.find_feet`).
+    from the body names by default (:func:`.robot_kinematic.find_feet`); measurements: also
+    return the per-frame :class:`RobotMeasurements`, as ``(measurements, report)``.
 
     Raises ValueError for a qpos of a wrong shape, with NaN or infinite values (naming the
     frames) or a root quaternion far from unit length, a rate that is not > 0, a model without a
     free root first, feet it cannot find, or thresholds that are not numbers;
     FileNotFoundError for a model path that does not exist.
     """
-    return evaluate_robot_detailed(qpos, model, fps, thresholds, feet)[1]
+    thresholds = load_robot_thresholds(thresholds)
+    m = measure_robot(qpos, model, fps, feet)
+    report = robot_report(m, thresholds)
+    return (m, report) if measurements else report

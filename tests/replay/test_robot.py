@@ -18,7 +18,6 @@ from motion_env.replay.robot import (
     ROBOT_CHECKS,
     SHARED_CHECKS,
     evaluate_robot,
-    evaluate_robot_detailed,
     load_robot_thresholds,
 )
 from motion_env.replay.robot_kinematic import GeomPoints, collision_geoms, find_feet, measure_robot
@@ -125,7 +124,7 @@ def test_an_arm_driven_into_the_torso_is_caught(robot) -> None:
         j = _joint(model, joint)
         assert model.jnt_range[j, 0] <= value <= model.jnt_range[j, 1]  # a legal pose, yet a collision
         qpos[:, model.jnt_qposadr[j]] = value
-    m, result = evaluate_robot_detailed(qpos, model, FPS)
+    m, result = evaluate_robot(qpos, model, FPS, measurements=True)
     assert result["failed"] == ["self_collision"]
     assert result["checks"]["self_collision"]["value"] > 0.04
     assert CASES[name]["torso"] in m.self_pair[0]
