@@ -22,19 +22,20 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")  # the speed is measured on one thread
 
-import argparse  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
+from dataclasses import dataclass  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
 import motion_env  # noqa: E402
-from motion_env.args import write_json  # noqa: E402
+from motion_env.args import parse_dataclass, write_json  # noqa: E402
 from motion_env.data.captions.files import labels_for_file  # noqa: E402
 from motion_env.data.dataset import split_of  # noqa: E402
 from motion_env.retarget.quality import TARGETS, measure  # noqa: E402
 
+DATA = os.environ.get("MOTION_ENV_DATA") or Path(__file__).resolve().parents[2] / "shared" / "data"
 # Action groups of the real takes: group -> Bandai content labels.
 ACTIONS = {
     "walk": ("walk",),
@@ -121,25 +122,25 @@ def format_table(robot: str, groups: dict[str, dict]) -> str:
     return "\n".join(lines)
 
 
+@dataclass
+class Args:
+    data: str = str(DATA)  # the shared data folder (bandai/ inside; $MOTION_ENV_DATA overrides)
+    robots: str = "unitree_g1,booster_t1"  # robots, comma-separated
+    fps: float = 50.0  # robot frame rate
+    takes_per_action: int = 2  # real takes per action group
+    generated: bool = True  # also clips of the shipped model (--no-generated: real takes only)
+    frames: int = 160  # frames per generated clip (20 fps)
+    seed: int = 0  # seed of the generated clips
+    json: str = ""  # write every clip's numbers here (empty: do not)
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    data = os.environ.get("MOTION_ENV_DATA") or Path(__file__).resolve().parents[2] / "shared" / "data"
-    parser.add_argument("--data", default=str(data), help="the shared data folder (bandai/ inside)")
-    parser.add_argument("--robots", default="unitree_g1,booster_t1", help="robots, comma-separated")
-    parser.add_argument("--fps", type=float, default=50.0, help="robot frame rate (default 50)")
-    parser.add_argument("--takes-per-action", type=int, default=2, help="real takes per action group")
-    parser.add_argument("--no-generated", action="store_true", help="skip the generated clips")
-    parser.add_argument("--frames", type=int, default=160, help="frames per generated clip (20 fps)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the generated clips")
-    parser.add_argument("--json", default=None, help="write every clip's numbers here")
-    args = parser.parse_args(argv)
+    args = parse_dataclass(Args, argv, description=__doc__)
 
     clips: list[tuple[str, str, str, motion_env.Motion]] = []  # (source, group, name, motion)
     for group, take, path in real_takes(Path(args.data), args.takes_per_action):
         clips.append(("real", group, take, motion_env.load_motion(path)))
-    if not args.no_generated:
+    if args.generated:
         import torch
 
         torch.set_num_threads(1)

@@ -237,29 +237,24 @@ def test_bad_inputs_are_named(robot, tmp_path) -> None:
         evaluate_robot(stand, model, FPS, feet=("left_hand", "right_hand"))
 
 
-TOY = """
+TOY_LEG = """
+      <body name="{side}_leg" pos="0 {y} -0.1">
+        <joint name="{s}_hip" axis="0 1 0" range="-1 1"/>
+        <geom type="capsule" fromto="0 0 0 0 0 -0.4" size="0.04" mass="2"/>
+        <body name="{s}_foot" pos="0 0 -0.48">
+          <joint name="{s}_ankle" axis="0 1 0" range="-0.5 0.5"/>
+          <geom type="box" size="0.1 0.05 0.02" pos="0.03 0 -0.02" mass="0.5"/>
+        </body>
+      </body>"""
+# A toy biped whose feet are named only by pattern (L_leg/l_foot, R_leg/r_foot).
+LEGS = TOY_LEG.format(side="L", s="l", y=0.1) + TOY_LEG.format(side="R", s="r", y=-0.1)
+TOY = f"""
 <mujoco model="toy biped">
   <worldbody>
     <geom name="floor" type="plane" size="0 0 0.05"/>
     <body name="base" pos="0 0 0.62">
       <freejoint/>
-      <geom type="box" size="0.1 0.15 0.1" mass="10"/>
-      <body name="L_leg" pos="0 0.1 -0.1">
-        <joint name="l_hip" axis="0 1 0" range="-1 1"/>
-        <geom type="capsule" fromto="0 0 0 0 0 -0.4" size="0.04" mass="2"/>
-        <body name="l_foot" pos="0 0 -0.48">
-          <joint name="l_ankle" axis="0 1 0" range="-0.5 0.5"/>
-          <geom type="box" size="0.1 0.05 0.02" pos="0.03 0 -0.02" mass="0.5"/>
-        </body>
-      </body>
-      <body name="R_leg" pos="0 -0.1 -0.1">
-        <joint name="r_hip" axis="0 1 0" range="-1 1"/>
-        <geom type="capsule" fromto="0 0 0 0 0 -0.4" size="0.04" mass="2"/>
-        <body name="r_foot" pos="0 0 -0.48">
-          <joint name="r_ankle" axis="0 1 0" range="-0.5 0.5"/>
-          <geom type="box" size="0.1 0.05 0.02" pos="0.03 0 -0.02" mass="0.5"/>
-        </body>
-      </body>
+      <geom type="box" size="0.1 0.15 0.1" mass="10"/>{LEGS}
     </body>
   </worldbody>
 </mujoco>
