@@ -73,12 +73,8 @@ class RobotMotion:
 
     @property
     def num_frames(self) -> int:
+        """Frames of the clip (its length in seconds is ``num_frames / fps``)."""
         return int(self.qpos.shape[0])
-
-    @property
-    def duration(self) -> float:
-        """Length in seconds."""
-        return self.num_frames / self.fps
 
     @property
     def root_pos(self) -> np.ndarray:
