@@ -39,7 +39,7 @@ OBSTACLES = np.array([[0.0, 3.0, 1.0], [2.2, 5.6, 0.8], [-0.2, 6.6, 0.6]])
 
 
 def main(args: Args) -> dict:
-    out, generator = args.setup()
+    _, generator = args.setup()  # the outputs go to args.out (write_outputs)
 
     goal = np.array([args.goal_x, args.goal_z])
     env = gym.make(

@@ -49,7 +49,7 @@ def max_step_near(joints: np.ndarray, frame: int, window: int = 10) -> float:
 
 
 def main(args: Args) -> dict:
-    out, generator = args.setup()
+    _, generator = args.setup()  # the outputs go to args.out (write_outputs)
 
     env = gym.make("motion_env/Waypoints-v0", generator=generator, terminate_on_arrival=False,
                    max_episode_steps=args.max_steps)  # fmt: skip

@@ -32,7 +32,7 @@ class Args(ExampleArgs):
 
 
 def main(args: Args) -> dict:
-    out, generator = args.setup()
+    _, generator = args.setup()  # the outputs go to args.out (write_outputs)
     route = np.array(parse_waypoints(args.route, "--route"), np.float32)
 
     env = gym.make("motion_env/Waypoints-v0", generator=generator, max_episode_steps=args.max_steps)

@@ -84,20 +84,13 @@ def _check_outputs(args: argparse.Namespace) -> None:
 def _check_request(args: argparse.Namespace) -> list[list[float]] | None:
     """The route, start, clip length and seed, checked as the generator will check them."""
     from motion_env.args import parse_waypoints
-    from motion_env.generation.request import check_batch_request, check_text
+    from motion_env.generation.request import check_request, check_text
 
     check_text(args.text, "--text")
     waypoints = None if args.waypoints is None else parse_waypoints(args.waypoints)
     start = _parse_start(args.start)
     try:
-        check_batch_request(
-            [args.text],
-            waypoints,
-            args.frames,
-            args.seed,
-            None if start is None else [start],
-            args.infeasible,
-        )
+        check_request(args.text, waypoints, args.frames, args.seed, start, args.infeasible)
     except ValueError as exc:
         # The library names its keyword argument; here it is an option.
         raise ValueError(str(exc).replace("infeasible='warn'", "--infeasible warn")) from None

@@ -27,9 +27,7 @@ from motion_env.generation.pipeline import Pipeline
 from motion_env.generation.request import (
     BatchRequest,
     check_batch_request,
-    check_route,
-    check_start,
-    check_text,
+    check_request,
     check_texts,
 )
 from motion_env.models.checkpoint import check_text_encoder, load_checkpoint, save_checkpoint
@@ -321,10 +319,7 @@ class MotionGenerator:
             Motion with joints (T, 22, 3) float32 world metres, fps 20, the caption, the waypoints
             and meta (seed, model).
         """
-        check_text(text)
-        starts = None if start is None else check_start(start)[None]
-        route = [check_route(waypoints)]
-        return self._clips(check_batch_request([text], route, num_frames, seed, starts, infeasible))[0]
+        return self._clips(check_request(text, waypoints, num_frames, seed, start, infeasible))[0]
 
     @torch.no_grad()
     def generate_batch(

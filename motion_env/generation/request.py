@@ -47,6 +47,7 @@ __all__ = [
     "BatchRequest",
     "check_batch_request",
     "check_feasible",
+    "check_request",
     "check_num_frames",
     "check_route",
     "check_start",
@@ -283,11 +284,36 @@ def check_batch_request(
 ) -> BatchRequest:
     """Check every argument of a batch request once and return the validated values (no model needed)."""
     texts = check_texts(texts)
-    num_frames = check_num_frames(num_frames)
-    starts_arr = check_starts(starts, len(texts))
     routes = per_row_waypoints(waypoints, len(texts))
+    return _finish(texts, routes, check_starts(starts, len(texts)), num_frames, seed, infeasible)
+
+
+def check_request(
+    text: Any,
+    waypoints: Any,
+    num_frames: Any,
+    seed: int | None,
+    start: Any,
+    infeasible: str = "raise",
+) -> BatchRequest:
+    """:func:`check_batch_request` for one character, with messages naming `text`, `waypoints`
+    and `start` (a batch of one)."""
+    starts = np.zeros((1, 3), np.float32) if start is None else check_start(start)[None]
+    return _finish([check_text(text)], [check_route(waypoints)], starts, num_frames, seed, infeasible)
+
+
+def _finish(
+    texts: list[str],
+    routes: list[np.ndarray | None],
+    starts: np.ndarray,
+    num_frames: Any,
+    seed: int | None,
+    infeasible: str,
+) -> BatchRequest:
+    """The checks that need the whole request: clip length, seed, feasibility of each route."""
+    num_frames = check_num_frames(num_frames)
     for i, route in enumerate(routes):
         what = "waypoints" if len(routes) == 1 else f"waypoints of character {i}"
-        routes[i] = check_feasible(route, starts_arr[i, :2], infeasible, what=what)
+        routes[i] = check_feasible(route, starts[i, :2], infeasible, what=what)
         warn_past_the_end(routes[i], num_frames, what)
-    return BatchRequest(texts, routes, starts_arr, num_frames, resolve_seed(seed))
+    return BatchRequest(texts, routes, starts, num_frames, resolve_seed(seed))

@@ -31,12 +31,13 @@ from motion_env.retarget.robot import load_robot
 from motion_env.retarget.smoothing import smooth_qpos
 from motion_env.retarget.targets import compute_targets
 
-__all__ = ["MAX_FPS", "retarget"]
+__all__ = ["MAX_FPS", "check_rate", "retarget"]
 
 MAX_FPS = 1000.0
 
 
-def _check_rate(value: object, name: str, upper: float | None = None) -> float:
+def check_rate(value: object, name: str, upper: float | None = None) -> float:
+    """A positive finite number (a frame rate, a speed), at most `upper`; else ValueError naming `name`."""
     if isinstance(value, bool) or not isinstance(value, Real) or not np.isfinite(value) or value <= 0:
         raise ValueError(f"{name} must be a positive number, got {value!r}")
     if upper is not None and value > upper:
@@ -94,8 +95,8 @@ def retarget(
         FileNotFoundError: a robot path that does not exist.
     """
     joints, src_fps = _check_motion(motion)
-    fps = _check_rate(fps, "fps", MAX_FPS)
-    max_step = _check_rate(max_joint_speed, "max_joint_speed") / fps
+    fps = check_rate(fps, "fps", MAX_FPS)
+    max_step = check_rate(max_joint_speed, "max_joint_speed") / fps
     if isinstance(smoothing, bool) or not isinstance(smoothing, Real) or not 0 <= smoothing < np.inf:
         raise ValueError(f"smoothing must be a number of seconds >= 0, got {smoothing!r}")
     if not isinstance(robot, (str, os.PathLike)):

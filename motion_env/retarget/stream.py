@@ -28,6 +28,7 @@ import numpy as np
 
 from motion_env.motion.checks import check_joints
 from motion_env.motion.skeleton import FPS
+from motion_env.retarget.api import check_rate
 from motion_env.retarget.ik import FrameSolver, IKSettings
 from motion_env.retarget.limits import clip_to_limits, limit_speed
 from motion_env.retarget.robot import Robot, load_robot
@@ -63,10 +64,8 @@ class StreamRetargeter:
     ) -> None:
         if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)) or batch < 1:
             raise ValueError(f"batch must be a positive int, got {batch!r}")
-        if not (isinstance(max_joint_speed, (int, float)) and 0 < max_joint_speed < np.inf):
-            raise ValueError(f"max_joint_speed must be a positive number, got {max_joint_speed!r}")
         self.robot: Robot = load_robot(robot)
-        self.max_step = float(max_joint_speed) / self.fps
+        self.max_step = check_rate(max_joint_speed, "max_joint_speed") / self.fps
         self._solvers = [FrameSolver(self.robot, ik or IKSettings()) for _ in range(int(batch))]
         self._scales: list[tuple[float, float] | None] = [None] * int(batch)
         self.qpos = np.tile(self.robot.home, (int(batch), 1))
