@@ -43,8 +43,9 @@ def main(args: Args) -> dict:
 
     goal = np.array([args.goal_x, args.goal_z])
     env = gym.make(
-        "motion_env/Waypoints-v0", generator=generator, obstacles=OBSTACLES, max_episode_steps=args.max_steps
-    )
+        "motion_env/Waypoints-v0", generator=generator, obstacles=OBSTACLES, max_episode_steps=args.max_steps,
+        action_mode="absolute", frames_per_step=1,  # world points, one frame per planning step
+    )  # fmt: skip
     policy = AStarPolicy(goal=goal, obstacles=[tuple(o) for o in OBSTACLES],
                          clearance=args.clearance, lookahead=args.lookahead)  # fmt: skip
     obs, info = env.reset(seed=args.seed, options={"text": args.text, "waypoints": [goal]})

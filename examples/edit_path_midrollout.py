@@ -52,7 +52,7 @@ def main(args: Args) -> dict:
     _, generator = args.setup()  # the outputs go to args.out (write_outputs)
 
     env = gym.make("motion_env/Waypoints-v0", generator=generator, terminate_on_arrival=False,
-                   max_episode_steps=args.max_steps)  # fmt: skip
+                   max_episode_steps=args.max_steps, action_mode="absolute", frames_per_step=1)  # fmt: skip
     obs, info = env.reset(seed=args.seed, options={"text": args.text, "waypoints": ROUTE})
     route_agent, new_agent = WaypointPolicy(ROUTE), WaypointPolicy(NEW_POINTS)
     radius = env.unwrapped.config.arrive_radius

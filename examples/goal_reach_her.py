@@ -43,22 +43,23 @@ class Args(ExampleArgs):
 
 
 def make_env(generator: object, args: Args, max_steps: int) -> gym.Env:
-    """GoalReach-v0 with relative actions scaled to [-1, 1] (the Dict observation stays for HER)."""
-    env = gym.make(
+    """GoalReach-v0 with normalised actions: [-1, 1]^2 is a point up to `reach` metres around the
+    character, in its own frame. No "follow" switch: the agent must learn to steer to the goal."""
+    return gym.make(
         "motion_env/GoalReach-v0",
         generator=generator,
-        action_mode="relative",
+        action_mode="normalized",
+        reach=args.reach,
+        follow_action=False,
         frames_per_step=args.frames_per_step,
         max_episode_steps=max_steps,
     )
-    unit = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
-    return gym.wrappers.TransformAction(env, lambda a: np.asarray(a, np.float32) * args.reach, unit)
 
 
 def rollout(env: gym.Env, act, goal: np.ndarray, text: str, seed: int) -> tuple[np.ndarray, bool]:
     """One episode to a fixed goal; returns (joints (T, 22, 3), success)."""
     obs, info = env.reset(seed=seed, options={"text": text, "goal": goal})
-    frames, terminated, truncated = [info["step_joints"]], False, False
+    frames, terminated, truncated = [info["joints"][None]], False, False
     while not (terminated or truncated):
         obs, _, terminated, truncated, info = env.step(act(obs))
         frames.append(info["step_joints"])

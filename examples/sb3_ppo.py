@@ -1,15 +1,17 @@
-"""Train a stable-baselines3 PPO agent on motion_env/Waypoints-v0 (a real RL client of the env).
+"""Train a stable-baselines3 PPO agent on motion_env/Waypoints-v0 through the native vector env.
 
-The agent steers in the character's own frame (action_mode="relative"): each decision, held for
---frames-per-step frames, is a point up to --reach metres ahead/aside of the pelvis. Its reward is
-the env's: progress toward the route target plus a bonus per waypoint reached. After training it
-walks one fixed route deterministically; the example writes that rollout as a video, a top-down
-plot and a .npz, the model as a .zip, and prints the evaluation return next to a random agent's.
+`motion_env.make_sb3_env` gives SB3 a VecEnv of --num-envs characters that share one batched
+generator stream. The env's learning defaults do the rest: normalised actions (a point up to
+`reach` metres around the character, in its own frame, plus a "follow the route" switch), four
+frames (0.2 s) per decision, and a reward of progress, arrival bonuses and a time cost. PPO runs with
+SB3's default hyperparameters unless told otherwise. After training the agent walks one fixed route
+deterministically; the example writes that rollout as a video, a top-down plot and a .npz, the
+model as a .zip, and prints the evaluation return next to a random agent's.
 
 Needs the optional extra: pip install -c constraints.txt "motion-env[rl]"  (stable-baselines3)
 
-    python examples/sb3_ppo.py --out runs/ppo --total-timesteps 5000
-    python examples/sb3_ppo.py --random-model --total-timesteps 64 --n-steps 32 --eval-steps 10 \\
+    python examples/sb3_ppo.py --out runs/ppo --total-timesteps 60000
+    python examples/sb3_ppo.py --random-model --total-timesteps 32 --n-steps 16 --eval-steps 10 \\
         --out /tmp/smoke   # smoke test
 """
 
@@ -27,31 +29,28 @@ from motion_env.args import ExampleArgs, parse_dataclass, parse_waypoints, requi
 @dataclass
 class Args(ExampleArgs):
     out: str = "runs/sb3_ppo"  # output folder
-    total_timesteps: int = 4000  # env steps of training
-    n_steps: int = 256  # rollout length per PPO update
-    batch_size: int = 64
-    learning_rate: float = 3e-4
-    frames_per_step: int = 4  # frames per decision (0.2 s at 20 fps)
-    reach: float = 3.0  # metres: the action [-1, 1]^2 maps to a point this far in the character's frame
-    episode_steps: int = 100  # decisions per training episode (20 s)
+    total_timesteps: int = 60_000  # env steps of training, summed over the envs
+    num_envs: int = 16  # characters trained together (one batched generator call per frame)
+    n_steps: int = 2048  # rollout length per env and PPO update (SB3's default)
+    batch_size: int = 64  # SB3's default
+    learning_rate: float = 3e-4  # SB3's default
+    frames_per_step: int = 4  # frames per decision (0.2 s at 20 fps), the env's default
+    episode_steps: int = 150  # decisions per training episode (30 s), the registration's default
     eval_steps: int = 150  # decisions in the evaluation rollout
     eval_route: str = "0,3;3,5;5,2"  # the evaluation route "x,z;..." (world metres)
     text: str = "a person walks forward"  # caption of the evaluation rollout
 
 
 def make_env(generator: object, args: Args, max_steps: int) -> gym.Env:
-    """Waypoints-v0 with relative actions scaled to [-1, 1] and a flat observation, as PPO likes."""
-    settings = {"action_mode": "relative", "frames_per_step": args.frames_per_step}
-    env = gym.make("motion_env/Waypoints-v0", generator=generator, max_episode_steps=max_steps, **settings)
-    unit = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
-    scaled = gym.wrappers.TransformAction(env, lambda a: np.asarray(a, np.float32) * args.reach, unit)
-    return gym.wrappers.FlattenObservation(scaled)
+    """One Waypoints-v0 with the learning defaults, for the evaluation rollout."""
+    return gym.make("motion_env/Waypoints-v0", generator=generator, max_episode_steps=max_steps,
+                    frames_per_step=args.frames_per_step)  # fmt: skip
 
 
 def rollout(env: gym.Env, act, route: np.ndarray, text: str, seed: int) -> tuple[np.ndarray, float, bool]:
     """One episode on a fixed route; returns (joints (T, 22, 3), return, reached)."""
     obs, info = env.reset(seed=seed, options={"text": text, "waypoints": route})
-    frames, total, terminated, truncated = [info["step_joints"]], 0.0, False, False
+    frames, total, terminated, truncated = [info["joints"][None]], 0.0, False, False
     while not (terminated or truncated):
         obs, reward, terminated, truncated, info = env.step(act(obs))
         frames.append(info["step_joints"])  # every frame of the step, not only the last
@@ -64,13 +63,27 @@ def main(args: Args) -> dict:
     out, generator = args.setup()
 
     # Train: random captions and routes every episode (drawn by the env from its seed).
-    env = make_env(generator, args, args.episode_steps)
-    env.reset(seed=args.seed)
-    model = sb3.PPO("MlpPolicy", env, n_steps=args.n_steps, batch_size=args.batch_size,
-                learning_rate=args.learning_rate, seed=args.seed, device="cpu", verbose=0)  # fmt: skip
+    env = motion_env.make_sb3_env(
+        "motion_env/Waypoints-v0",
+        args.num_envs,
+        generator=generator,
+        frames_per_step=args.frames_per_step,
+        max_episode_steps=args.episode_steps,
+    )
+    env.seed(args.seed)
+    model = sb3.PPO(
+        "MultiInputPolicy",
+        env,
+        n_steps=args.n_steps,
+        batch_size=args.batch_size,
+        learning_rate=args.learning_rate,
+        seed=args.seed,
+        device="cpu",
+        verbose=0,
+    )
     model.learn(total_timesteps=args.total_timesteps, progress_bar=True)  # minutes of training: show them
     model.save(out / "ppo_waypoints.zip")
-    env.close()
+    env.close()  # fmt: skip
 
     # Evaluate on a fixed route: the trained agent, then a random one for comparison.
     route = np.array(parse_waypoints(args.eval_route, "--eval-route"), np.float32)[:, :2]

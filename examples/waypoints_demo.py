@@ -35,7 +35,10 @@ def main(args: Args) -> dict:
     _, generator = args.setup()  # the outputs go to args.out (write_outputs)
     route = np.array(parse_waypoints(args.route, "--route"), np.float32)
 
-    env = gym.make("motion_env/Waypoints-v0", generator=generator, max_episode_steps=args.max_steps)
+    env = gym.make(
+        "motion_env/Waypoints-v0", generator=generator, max_episode_steps=args.max_steps,
+        action_mode="absolute", frames_per_step=1,  # the policy issues world points, every frame
+    )  # fmt: skip
     obs, info = env.reset(seed=args.seed, options={"text": args.text, "waypoints": route})
     policy = WaypointPolicy(route, radius=env.unwrapped.config.arrive_radius)
 

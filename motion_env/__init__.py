@@ -16,14 +16,31 @@ from motion_env.motion import skeleton
 from motion_env.motion.types import Motion
 
 if TYPE_CHECKING:
+    from motion_env import objectives
+    from motion_env.envs.sb3 import make_sb3_env
     from motion_env.generation.generator import MotionGenerator
     from motion_env.retarget.api import retarget
 
 __version__ = "0.1.0"
-__all__ = ["Motion", "MotionGenerator", "load_bvh", "load_motion", "motion", "retarget", "skeleton"]
+__all__ = [
+    "Motion",
+    "MotionGenerator",
+    "load_bvh",
+    "load_motion",
+    "make_sb3_env",
+    "motion",
+    "objectives",
+    "retarget",
+    "skeleton",
+]
 
 # Loaded on first use. `retarget` is a package that can be called as its function.
-_LAZY = {"MotionGenerator": "motion_env.generation.generator", "retarget": "motion_env.retarget"}
+_LAZY = {
+    "MotionGenerator": "motion_env.generation.generator",
+    "retarget": "motion_env.retarget",
+    "make_sb3_env": "motion_env.envs.sb3",
+    "objectives": "motion_env.objectives",
+}
 
 
 def __getattr__(name: str) -> Any:

@@ -208,11 +208,12 @@ def test_motion_math_rejects_nan() -> None:
 @pytest.mark.parametrize(
     ("action", "error", "match"),
     [
-        (np.array([1 + 2j, 0.0]), TypeError, r"action must be real numbers.*complex"),
+        (np.array([1 + 2j, 0.0, 0.0]), TypeError, r"action must be real numbers.*complex"),
         (np.array(["a", "b"]), TypeError, r"action must be real numbers"),
         (np.array([None, None], dtype=object), TypeError, r"action must be real numbers"),
-        (np.array([np.nan, 0.0], np.float32), ValueError, r"action has NaN or infinite values"),
-        (np.zeros(3, np.float32), ValueError, r"action must have shape \(2,\)"),
+        (np.array([np.nan, 0.0, 1.0], np.float32), ValueError, r"action has NaN or infinite values"),
+        (np.zeros(2, np.float32), ValueError, r"action must have shape \(3,\) \(x, z, follow\)"),
+        (np.zeros((1, 1, 3), np.float32), ValueError, r"action must have shape \(3,\)"),
     ],
 )
 def test_env_rejects_bad_actions(gen, action, error, match) -> None:
@@ -241,3 +242,71 @@ def test_env_rejects_bad_options_and_settings(gen) -> None:
     with pytest.raises(TypeError, match="unknown arguments"):
         gym.make_vec("motion_env/Waypoints-v0", num_envs=2, vectorization_mode="vector_entry_point",
                      generator=gen, speed=3)  # fmt: skip
+
+
+# ----------------------------------------------------------------------------------------------
+# Joint targets and objectives (issue #10)
+# ----------------------------------------------------------------------------------------------
+
+
+def _targets(frames: int = 120) -> np.ndarray:
+    return np.full((frames, 22, 3), np.nan, np.float32)
+
+
+def _with(frame: int, joint: int, value: Any) -> np.ndarray:
+    t = _targets()
+    t[frame, joint] = value
+    return t
+
+
+@pytest.mark.parametrize(
+    "kwargs, error, match",
+    [
+        (
+            {"joint_targets": np.zeros((120, 21, 3))},
+            ValueError,
+            r"joint_targets must have shape \(num_frames, 22, 3\)",
+        ),
+        (
+            {"joint_targets": _targets(130)},
+            ValueError,
+            "130 frames, the clip has num_frames=120 .targets outside",
+        ),
+        (
+            {"joint_targets": _with(5, 21, [0, np.inf, 0])},
+            ValueError,
+            r"infinite value at frame 5, joint 21 \(right_wrist\)",
+        ),
+        (
+            {"joint_targets": _with(7, 15, [0, np.nan, 0])},
+            ValueError,
+            r"only some coordinates at frame 7, joint 15 \(head\)",
+        ),
+        ({"joint_targets": _with(7, 15, [1e6, 1, 0])}, ValueError, "within 10000 m"),
+        ({"joint_targets": "left hand up"}, ValueError, "joint_targets must"),
+        ({"objectives": motion_env.objectives.KeepOut(center=(0, 0), radius=1)}, TypeError, "must be a list"),
+        ({"objectives": [3.0]}, TypeError, r"objectives\[0\] is a float, not an objective"),
+        (
+            {"objectives": [lambda j: j[:, 0, 1]]},
+            ValueError,
+            r"objectives\[0\] returned a tensor of shape \(120,\)",
+        ),
+        ({"objectives": [lambda j: 1.0]}, TypeError, r"objectives\[0\] returned a float"),
+        ({"objectives": [lambda j: j.sum() * np.nan]}, ValueError, "finite cost"),
+        (
+            {"objectives": [lambda j: j.no_such_method()]},
+            ValueError,
+            r"objectives\[0\] .* raised AttributeError",
+        ),
+    ],
+)
+def test_bad_joint_targets_and_objectives(gen, kwargs, error, match) -> None:
+    with pytest.raises(error, match=match):
+        _generate(**kwargs)(gen)
+
+
+def test_bad_targets_in_a_batch_name_the_character(gen) -> None:
+    with pytest.raises(ValueError, match="joint_targets of character 1 has an infinite value"):
+        gen.generate_batch(["a", "b"], num_frames=120, joint_targets=[None, _with(3, 0, [np.inf, 0, 0])])
+    with pytest.raises(ValueError, match="unknown joint name 'hand'"):
+        motion_env.objectives.HeightLimit("hand", max_height=1.0)

@@ -72,7 +72,8 @@ def test_edit_path_midrollout(tmp_path):
 
 # The two RL examples (the optional "rl" extra): a few steps of training, then the evaluation rollout.
 RL_EXAMPLES = {
-    "sb3_ppo": (["--total-timesteps", "32", "--n-steps", "16", "--episode-steps", "10"], "ppo_waypoints.zip"),
+    "sb3_ppo": (["--total-timesteps", "32", "--n-steps", "8", "--num-envs", "2", "--episode-steps", "10"],
+                "ppo_waypoints.zip"),
     "goal_reach_her": (["--total-timesteps", "24", "--learning-starts", "12", "--episode-steps", "6"],
                        "sac_her_goal_reach.zip"),
 }  # fmt: skip

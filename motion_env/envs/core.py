@@ -32,7 +32,7 @@ from motion_env.envs.arena import Obstacle, obstacle_distance
 from motion_env.generation.request import check_text
 from motion_env.motion.kinematics import from_heading_frame, to_heading_frame
 from motion_env.motion.skeleton import FPS, NUM_JOINTS
-from motion_env.motion.trajectory import validate_waypoints, wrap_angle
+from motion_env.motion.trajectory import MAX_COORDINATE, validate_waypoints, wrap_angle
 
 DEFAULT_TEXT_POOL: tuple[str, ...] = (
     "a person walks forward",
@@ -49,16 +49,32 @@ _MAX_TURN = 0.5 * np.pi
 _ROUTE_CLEARANCE = 0.6  # random waypoints keep this far (m) from obstacles and the arena's edge
 _COMMAND_TOLERANCE = 1e-4  # metres: a detour this close to the current one is not re-sent
 
-ACTION_MODES = ("absolute", "relative")
+ACTION_MODES = ("normalized", "absolute", "relative")
 INVALID_ACTION_MODES = ("raise", "hold")
+# Waypoints after the route target that the observation shows ("route_ahead").
+ROUTE_AHEAD = 3
+# Half-widths of the observation Boxes that are not bounded by nature (metres, m/s and rad/s, or
+# the caption projection's units). Finite, so that the env checkers stay quiet; far beyond what a
+# walking human produces, and observations are clipped into them.
+OBS_BOUNDS = {
+    "target": 4 * MAX_COORDINATE,
+    "route_ahead": 4 * MAX_COORDINATE,
+    "velocity": 100.0,
+    "pose": 10.0,
+}
+OBS_BOUNDS["caption"] = 100.0
 
 
 @dataclass
 class EnvConfig:
-    """The tunables of the motion_env environments (validated; see the env docstrings)."""
+    """The tunables of the motion_env environments (validated; see the env docstrings).
 
-    action_mode: str = "absolute"
-    frames_per_step: int = 1
+    The defaults are the ones measured for learning (README, "Learning"): normalised actions with
+    a "follow the route" switch, four frames (one token, 0.2 s) per step, and a time cost.
+    """
+
+    action_mode: str = "normalized"
+    frames_per_step: int = 4
     arrive_radius: float = 0.5
     terminate_on_arrival: bool = True
     arena_size: float = 10.0
@@ -66,6 +82,9 @@ class EnvConfig:
     progress_weight: float = 1.0
     arrival_bonus: float = 1.0
     collision_penalty: float = 1.0
+    time_penalty: float = 0.1
+    reach: float = 3.0
+    follow_action: bool = True
     invalid_action: str = "raise"
     random_start: bool = False
     route_length: tuple[int, int] = (2, 4)
@@ -81,14 +100,16 @@ class EnvConfig:
         if int(self.frames_per_step) < 1 or int(self.frames_per_step) != self.frames_per_step:
             raise ValueError(f"frames_per_step must be an integer >= 1, got {self.frames_per_step!r}")
         self.frames_per_step = int(self.frames_per_step)
-        for name in ("arrive_radius", "arena_size"):
+        for name in ("arrive_radius", "arena_size", "reach"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
-        for name in ("snap_radius", "progress_weight", "arrival_bonus", "collision_penalty"):
+        for name in ("snap_radius", "progress_weight", "arrival_bonus", "collision_penalty", "time_penalty"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+        if not isinstance(self.follow_action, (bool, np.bool_)):
+            raise ValueError(f"follow_action must be True or False, got {self.follow_action!r}")
         lo, hi = (int(v) for v in self.route_length)
         if not 1 <= lo <= hi:
             raise ValueError(f"route_length must be (min, max) with 1 <= min <= max, got {self.route_length}")
@@ -98,8 +119,16 @@ class EnvConfig:
 
     @property
     def action_bound(self) -> float:
-        """Half-width of the action Box: the arena, or (relative mode) any arena point from anywhere in it."""
+        """Half-width of the action Box: 1 (normalized), the arena (absolute), or (relative) any
+        arena point from anywhere in it."""
+        if self.action_mode == "normalized":
+            return 1.0
         return self.arena_size if self.action_mode == "absolute" else 3.0 * self.arena_size
+
+    @property
+    def action_size(self) -> int:
+        """2 (a point), or 3 with the normalized mode's "follow the route" switch."""
+        return 3 if self.action_mode == "normalized" and self.follow_action else 2
 
 
 # ----------------------------------------------------------------------------------------------
@@ -126,31 +155,33 @@ def validate_text_pool(text_pool: Sequence[str] | None) -> tuple[str, ...]:
 
 
 def check_actions(
-    actions: Any, batch: int, bound: float, invalid: str
+    actions: Any, batch: int, bound: float, invalid: str, size: int = 2
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Validate a batch of actions.
 
     Args:
-        actions: (B, 2) (or (2,) when B = 1) numbers.
+        actions: (B, size) (or (size,) when B = 1) numbers.
         batch: B.
         bound: the action Box's half-width; finite values beyond it are clipped.
         invalid: "raise" (ValueError for NaN/inf) or "hold" (those rows are flagged, not applied).
+        size: numbers per action (2: a point; 3: a point and the follow switch).
 
     Returns:
-        ((B, 2) float64 clipped actions, (B,) bool valid rows, (B,) bool clipped rows).
+        ((B, size) float64 clipped actions, (B,) bool valid rows, (B,) bool clipped rows).
     """
+    what = "(x, z)" if size == 2 else "(x, z, follow)"
     try:
         raw = np.asarray(actions)
     except ValueError as exc:  # ragged nested lists
-        raise ValueError(f"action must be numbers of shape ({batch}, 2): {exc}") from None
+        raise ValueError(f"action must be numbers of shape ({batch}, {size}): {exc}") from None
     if raw.dtype.kind not in "biuf":  # complex parts would be dropped with only numpy's warning
-        raise TypeError(f"action must be real numbers (x, z), got dtype {raw.dtype}: {actions!r}")
+        raise TypeError(f"action must be real numbers {what}, got dtype {raw.dtype}: {actions!r}")
     arr = raw.astype(np.float64)
-    if batch == 1 and arr.shape == (2,):
+    if batch == 1 and arr.shape == (size,):
         arr = arr[None]
-    if arr.shape != (batch, 2):
-        expected = "(2,)" if batch == 1 else f"({batch}, 2)"
-        raise ValueError(f"action must have shape {expected} (x, z), got {arr.shape}")
+    if arr.shape != (batch, size):
+        expected = f"({size},)" if batch == 1 else f"({batch}, {size})"
+        raise ValueError(f"action must have shape {expected} {what}, got {arr.shape}")
     valid = np.isfinite(arr).all(axis=1)
     if not valid.all() and invalid == "raise":
         rows = np.nonzero(~valid)[0].tolist()
@@ -283,8 +314,10 @@ class CharacterBatch:
             starts=np.asarray(starts, np.float32),
             seed=seed,
         )
+        self.caption = self.stream.caption_features()
         self.begin_step()
         self.emit_frame()
+        self.just_started[:] = True
 
     def restart(self, i: int, text: str, route: np.ndarray, start: np.ndarray) -> None:
         """Restart character i with a new caption, route and start (its first frame comes next)."""
@@ -293,10 +326,12 @@ class CharacterBatch:
         self.pos[i], self.theta[i] = start[:2], start[2]
         self.fresh[i] = True
         self.trails[i].clear()
-        self.progress[i] = self.arrivals[i] = self.collisions[i] = 0.0
+        self.progress[i] = self.arrivals[i] = self.collisions[i] = self.frames[i] = 0.0
         if self.retargeter is not None:
             self.retargeter.reset(i)
         self.stream.reset(i, text, waypoints=route.copy(), start=np.asarray(start, np.float32))
+        self.caption[i] = self.stream.caption_features()[i]
+        self.just_started[i] = True
 
     def _store_route(self, i: int, route: np.ndarray) -> np.ndarray:
         """Make `route` character i's route from R[0] on (following it); returns it validated."""
@@ -316,6 +351,7 @@ class CharacterBatch:
         self.stream.set_text(text, index=index)
         for i in range(len(self.texts)) if index is None else [index]:
             self.texts[i] = text
+        self.caption = self.stream.caption_features()
 
     def set_route(self, i: int, route: np.ndarray) -> None:
         """Replace character i's route mid-episode: k = 0 and the character follows the new route."""
@@ -330,16 +366,28 @@ class CharacterBatch:
         self.progress = np.zeros(n)
         self.arrivals = np.zeros(n)
         self.collisions = np.zeros(n)
+        self.frames = np.zeros(n)
+        self.just_started = np.zeros(n, bool)
         self.step_frames: list[np.ndarray] = []
 
     def to_world(self, actions: np.ndarray) -> np.ndarray:
-        """Actions (B, 2) in the configured mode -> world (x, z) command points."""
-        if self.config.action_mode == "absolute":
-            return actions.astype(np.float64)
-        return self.pos + from_heading_frame(actions, self.theta)
+        """Actions (B, 2|3) in the configured mode -> world (x, z) command points.
+
+        In the normalized mode a positive third component ("follow") commands the route target,
+        which means "follow the route" (see the module docstring).
+        """
+        mode = self.config.action_mode
+        if mode == "absolute":
+            return actions[:, :2].astype(np.float64)
+        scale = self.config.reach if mode == "normalized" else 1.0
+        world = self.pos + from_heading_frame(actions[:, :2] * scale, self.theta)
+        if mode == "normalized" and actions.shape[1] == 3:
+            follow = actions[:, 2] > 0.0
+            world[follow] = self.route_target[follow]
+        return world
 
     def command(self, actions: np.ndarray, apply: np.ndarray) -> None:
-        """Apply world actions (B, 2) to the characters where `apply` (B,) is True (see module doc)."""
+        """Apply actions (B, 2|3) to the characters where `apply` (B,) is True (see module doc)."""
         cmd = self.to_world(actions)
         cols = np.arange(self.route_arr.shape[1])
         dist = np.linalg.norm(self.route_arr[:, :, :2] - cmd[:, None, :], axis=-1)
@@ -364,77 +412,118 @@ class CharacterBatch:
                 self.command_xz[b] = cmd[b]
                 self.stream.set_waypoints(cmd[b][None].astype(np.float32), index=int(b))
 
-    def emit_frame(self) -> None:
-        """Emit one frame of every character and update positions, velocities and route progress."""
-        joints = np.asarray(self.stream.step(), dtype=np.float32)
-        root = np.asarray(self.stream.root_state, dtype=np.float64)
-        frame = np.asarray(self.stream.frame_index) - 1  # index of the frame just emitted
-        self.joints = joints
-        self.step_frames.append(joints)
+    def emit_frame(self, rows: np.ndarray | None = None) -> None:
+        """Emit one frame of every character (or of `rows`: the others wait) and update positions,
+        velocities and route progress.
+
+        A frame emitted for `rows` only (the first frame of a restarted character, vector-env
+        autoreset in the same step) is not one of the step's frames: it starts the new episode.
+        """
+        every = rows is None
+        rows = np.arange(len(self.texts)) if every else np.asarray(rows, np.int64)
+        joints = np.asarray(self.stream.step(None if every else rows), dtype=np.float32)
+        root = np.asarray(self.stream.root_state, dtype=np.float64)[rows]
+        frame = np.asarray(self.stream.frame_index)[rows] - 1  # index of the frame just emitted
+        self.joints[rows] = joints
+        if every:
+            self.step_frames.append(joints)
+        else:
+            self.just_started[rows] = True
         if self.retargeter is not None:
-            self.robot_qpos = self.retargeter.step(joints).astype(np.float32)
-        self.prev_pos = np.where(self.fresh[:, None], joints[:, 0, [0, 2]], self.pos)
-        self.prev_theta = np.where(self.fresh, root[:, 2], self.theta)
-        self.pos = joints[:, 0, [0, 2]].astype(np.float64)
-        self.theta = root[:, 2]
-        self.fresh[:] = False
-        step = to_heading_frame(self.pos - self.prev_pos, self.theta) * FPS
-        self.vel = np.concatenate([step, wrap_angle(self.theta - self.prev_theta)[:, None] * FPS], axis=1)
-        for b in range(len(self.trails)):
+            self.robot_qpos[rows] = self.retargeter.step(joints, rows)[rows].astype(np.float32)
+        fresh = self.fresh[rows]
+        pos = joints[:, 0, [0, 2]].astype(np.float64)
+        prev_pos = np.where(fresh[:, None], pos, self.pos[rows])
+        prev_theta = np.where(fresh, root[:, 2], self.theta[rows])
+        self.prev_pos[rows], self.prev_theta[rows] = prev_pos, prev_theta
+        self.pos[rows], self.theta[rows] = pos, root[:, 2]
+        self.fresh[rows] = False
+        step = to_heading_frame(pos - prev_pos, root[:, 2]) * FPS
+        self.vel[rows] = np.concatenate([step, wrap_angle(root[:, 2] - prev_theta)[:, None] * FPS], axis=1)
+        for b in rows:
             self.trails[b].append(self.pos[b].copy())
 
-        rows = np.arange(len(self.texts))
-        target = self.route_arr[rows, self.k, :2]
-        self.progress += np.linalg.norm(self.prev_pos - target, axis=1) - np.linalg.norm(
-            self.pos - target, axis=1
+        target = self.route_arr[rows, self.k[rows], :2]
+        self.progress[rows] += np.linalg.norm(prev_pos - target, axis=1) - np.linalg.norm(
+            pos - target, axis=1
         )
-        self.collisions += obstacle_distance(self.pos, self.obstacles) < 0.0
-        self._advance_routes(frame)
+        self.collisions[rows] += obstacle_distance(pos, self.obstacles) < 0.0
+        self.frames[rows] += 1
+        self._advance_routes(rows, frame)
 
-    def _advance_routes(self, frame: np.ndarray) -> None:
-        rows = np.arange(len(self.texts))
+    def _advance_routes(self, rows: np.ndarray, frame: np.ndarray) -> None:
         r = self.config.arrive_radius
+        pos = self.pos[rows]
+        k, count, following = self.k[rows], self.route_count[rows], self.following[rows]
+        arrivals = np.zeros(len(rows))
         for _ in range(self.route_arr.shape[1]):
-            wp = self.route_arr[rows, self.k]
-            near = np.linalg.norm(self.pos - wp[:, :2], axis=1) < r
-            can = self.k < self.route_count - 1
+            wp = self.route_arr[rows, k]
+            near = np.linalg.norm(pos - wp[:, :2], axis=1) < r
+            can = k < count - 1
             hit = can & near
-            late = can & ~hit & self.following & ~np.isnan(wp[:, 2]) & (frame >= np.nan_to_num(wp[:, 2]))
+            late = can & ~hit & following & ~np.isnan(wp[:, 2]) & (frame >= np.nan_to_num(wp[:, 2]))
             if not (hit | late).any():
                 break
-            self.arrivals += hit
-            self.k += hit | late
-        last = self.route_arr[rows, self.route_count - 1, :2]
-        final = (
-            (self.k == self.route_count - 1) & ~self.reached & (np.linalg.norm(self.pos - last, axis=1) < r)
-        )
-        self.arrivals += final
-        self.reached |= final
-        self.command_xz[self.following] = self.route_arr[rows, self.k, :2][self.following]
+            arrivals += hit
+            k = k + (hit | late)
+        last = self.route_arr[rows, count - 1, :2]
+        final = (k == count - 1) & ~self.reached[rows] & (np.linalg.norm(pos - last, axis=1) < r)
+        self.k[rows] = k
+        self.arrivals[rows] += arrivals + final
+        self.reached[rows] |= final
+        follow = rows[following]
+        self.command_xz[follow] = self.route_arr[follow, self.k[follow], :2]
 
     # -- reading -------------------------------------------------------------------------------
 
     def step_joints(self) -> np.ndarray:
-        """(B, F, 22, 3) every frame emitted since :meth:`begin_step` (F = frames_per_step after a step)."""
-        return np.stack(self.step_frames, axis=1)
+        """(B, F, 22, 3) the frames each character's last step emitted, F = ``frames_per_step``
+        always (one shape, so vector envs can stack it): a character that (re)started this step
+        shows its first frame F times, as the pose it stood in."""
+        f = self.config.frames_per_step
+        out = np.stack(self.step_frames[-f:], axis=1) if self.step_frames else self.joints[:, None]
+        if out.shape[1] < f:
+            out = np.concatenate([np.repeat(out[:, :1], f - out.shape[1], axis=1), out], axis=1)
+        out[self.just_started] = self.joints[self.just_started][:, None]
+        return out
 
     @property
     def route_target(self) -> np.ndarray:
         """(B, 2) world x, z of each character's route target R[k]."""
         return self.route_arr[np.arange(len(self.texts)), self.k, :2].copy()
 
+    def route_ahead(self) -> np.ndarray:
+        """(B, ROUTE_AHEAD, 2) world x, z of the waypoints after the route target (the last one
+        repeated past the end of the route)."""
+        ahead = self.k[:, None] + 1 + np.arange(ROUTE_AHEAD)[None]
+        ahead = np.minimum(ahead, self.route_count[:, None] - 1)
+        return self.route_arr[np.arange(len(self.texts))[:, None], ahead, :2]
+
     def observations(self) -> dict[str, np.ndarray]:
         """The Waypoints-v0 observation of every character, as (B, ...) float32 arrays."""
+        b = len(self.texts)
         local = to_heading_frame(self.joints[:, :, [0, 2]] - self.pos[:, None, :], self.theta[:, None])
         pose = np.stack([local[..., 0], self.joints[..., 1], local[..., 1]], axis=-1)
-        return {
+        ahead = to_heading_frame(self.route_ahead() - self.pos[:, None], self.theta[:, None])
+        last = self.k == self.route_count - 1
+        obs = {
             "root": np.stack(
                 [self.pos[:, 0], self.pos[:, 1], np.cos(self.theta), np.sin(self.theta)], axis=1
-            ).astype(np.float32),
-            "target": to_heading_frame(self.route_target - self.pos, self.theta).astype(np.float32),
-            "velocity": self.vel.astype(np.float32),
-            "pose": pose.reshape(len(self.texts), NUM_JOINTS * 3).astype(np.float32),
+            ),
+            "target": to_heading_frame(self.route_target - self.pos, self.theta),
+            "route_ahead": ahead.reshape(b, ROUTE_AHEAD * 2),
+            "route_state": np.stack(
+                [self.following, last, np.minimum(self.route_count - 1 - self.k, ROUTE_AHEAD) / ROUTE_AHEAD],
+                axis=1,
+            ),
+            "velocity": self.vel,
+            "pose": pose.reshape(b, NUM_JOINTS * 3),
+            "caption": self.caption,
         }
+        obs["root"][:, :2] = np.clip(obs["root"][:, :2], -MAX_COORDINATE, MAX_COORDINATE)
+        for name, bound in OBS_BOUNDS.items():
+            obs[name] = np.clip(obs[name], -bound, bound)
+        return {name: value.astype(np.float32) for name, value in obs.items()}
 
     def rewards(self) -> dict[str, np.ndarray]:
         """This step's reward terms (B,) each; their sum is the reward."""
@@ -443,4 +532,5 @@ class CharacterBatch:
             "reward_progress": c.progress_weight * self.progress,
             "reward_arrival": c.arrival_bonus * self.arrivals,
             "reward_collision": -c.collision_penalty * self.collisions,
+            "reward_time": -c.time_penalty * self.frames / FPS,
         }

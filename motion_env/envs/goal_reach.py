@@ -2,18 +2,22 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 from gymnasium import spaces
 
-from motion_env.envs.arena import obstacle_distance
-from motion_env.envs.waypoints import WaypointsEnv
-from motion_env.motion.skeleton import NUM_JOINTS
+from motion_env.envs.arena import Obstacle, obstacle_distance
+from motion_env.envs.core import CharacterBatch, EnvConfig
+from motion_env.envs.vector import WaypointsVectorEnv
+from motion_env.envs.waypoints import WaypointsEnv, observation_space
+from motion_env.motion.trajectory import MAX_COORDINATE
 
 REWARD_TYPES = ("sparse", "dense")
 _GOAL_DISTANCE = (1.5, 4.0)  # random goals lie this far (m) from the start
-_OBSERVATION_DIM = 4 + 3 + NUM_JOINTS * 3
+# The parts of Waypoints-v0's observation that make GoalReach's "observation" (73 numbers).
+_OBSERVATION_PARTS = ("root", "velocity", "pose")
 
 
 class GoalReachEnv(WaypointsEnv):
@@ -65,14 +69,7 @@ class GoalReachEnv(WaypointsEnv):
             raise ValueError(f"reward_type must be one of {REWARD_TYPES}, got {reward_type!r}")
         self.reward_type = reward_type
         super().__init__(*args, **kwargs)
-        inf = np.float32(np.inf)
-        self.observation_space = spaces.Dict(
-            {
-                "observation": spaces.Box(-inf, inf, (_OBSERVATION_DIM,), np.float32),
-                "achieved_goal": spaces.Box(-inf, inf, (2,), np.float32),
-                "desired_goal": spaces.Box(-inf, inf, (2,), np.float32),
-            }
-        )
+        self.observation_space = goal_observation_space()
 
     def compute_reward(
         self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any = None
@@ -81,52 +78,133 @@ class GoalReachEnv(WaypointsEnv):
 
         Returns a float32 array of shape (...,) (a float for single (2,) goals).
         """
-        achieved = np.asarray(achieved_goal, dtype=np.float64)
-        desired = np.asarray(desired_goal, dtype=np.float64)
-        if achieved.shape[-1:] != (2,) or desired.shape[-1:] != (2,):
-            raise ValueError(f"goals must have shape (..., 2), got {achieved.shape} and {desired.shape}")
-        d = np.linalg.norm(achieved - desired, axis=-1)
-        if self.reward_type == "sparse":
-            reward = -(d >= self.config.arrive_radius).astype(np.float32)
-        else:
-            reward = -d.astype(np.float32)
-        return float(reward) if reward.ndim == 0 else reward
+        return goal_reward(achieved_goal, desired_goal, self.reward_type, self.config.arrive_radius)
 
     def _route(self, options: dict[str, Any], start: np.ndarray) -> np.ndarray:
         goal = options.get("goal")
         if goal is not None:
-            arr = np.array(goal, dtype=np.float64).reshape(-1)
-            if arr.shape != (2,) or not np.isfinite(arr).all():
-                raise ValueError(f"options['goal'] must be a finite (x, z) pair, got {goal!r}")
-            return np.array([[arr[0], arr[1], np.nan]], np.float32)
-        return self._sample_goal(start)[None]
-
-    def _sample_goal(self, start: np.ndarray) -> np.ndarray:
-        limit = self.config.arena_size - 0.5
-        for _ in range(100):
-            angle = self.np_random.uniform(-np.pi, np.pi)
-            point = start[:2] + self.np_random.uniform(*_GOAL_DISTANCE) * np.array(
-                [np.sin(angle), np.cos(angle)]
-            )
-            if (np.abs(point) <= limit).all() and obstacle_distance(point, self.obstacles) > 0.6:
-                break
-        point = np.clip(point, -limit, limit)
-        return np.array([point[0], point[1], np.nan], np.float32)
+            return check_goal(goal)
+        return sample_goal(self.np_random, start, self.config, self.obstacles)
 
     def _reward_terms(self) -> dict[str, np.ndarray]:
-        batch = self._batch
-        return {"reward_goal": np.atleast_1d(self.compute_reward(batch.pos, batch.route_target))}
+        return goal_terms(self._batch, self.reward_type)
 
     def _observation(self) -> dict[str, np.ndarray]:
-        obs = self._batch.observations()
-        return {
-            "observation": np.concatenate([obs["root"][0], obs["velocity"][0], obs["pose"][0]]),
-            "achieved_goal": self._batch.pos[0].astype(np.float32),
-            "desired_goal": self._batch.route_target[0].astype(np.float32),
-        }
+        return {name: value[0] for name, value in goal_observations(self._batch).items()}
 
     @property
     def goal(self) -> np.ndarray:
         """(2,) world x, z of the goal."""
         self._require_episode()
         return self._batch.routes[0][-1, :2].copy()
+
+
+class GoalReachVectorEnv(WaypointsVectorEnv):
+    """N GoalReach-v0 characters stepped together through one batched generator stream.
+
+    ``gym.make_vec("motion_env/GoalReach-v0", num_envs=N)`` builds it. Each sub-environment behaves
+    as :class:`GoalReachEnv` (observations, ``reward_type``, reset options ``text``, ``goal`` and
+    ``start``); batching, autoreset and infos are those of
+    :class:`~motion_env.envs.vector.WaypointsVectorEnv`. ``compute_reward`` works on batches of
+    goals, as the single env's.
+    """
+
+    reset_options: tuple[str, ...] = ("text", "goal", "start")
+
+    def __init__(self, *args: Any, reward_type: str = "sparse", **kwargs: Any) -> None:
+        if reward_type not in REWARD_TYPES:
+            raise ValueError(f"reward_type must be one of {REWARD_TYPES}, got {reward_type!r}")
+        self.reward_type = reward_type
+        super().__init__(*args, **kwargs)
+
+    def compute_reward(
+        self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any = None
+    ) -> np.ndarray | float:
+        """As :meth:`GoalReachEnv.compute_reward`."""
+        return goal_reward(achieved_goal, desired_goal, self.reward_type, self.config.arrive_radius)
+
+    def _observation_space(self) -> spaces.Dict:
+        return goal_observation_space()
+
+    def _observations(self) -> dict[str, np.ndarray]:
+        return goal_observations(self._batch)
+
+    def _reward_terms(self) -> dict[str, np.ndarray]:
+        return goal_terms(self._batch, self.reward_type)
+
+    def _check_route_options(self, options: dict[str, Any]) -> dict[str, Any]:
+        if options.get("goal") is not None:
+            options["goal"] = check_goal(options["goal"])
+        return options
+
+    def _route(self, start: np.ndarray) -> np.ndarray:
+        goal = self._options.get("goal")
+        return sample_goal(self.np_random, start, self.config, self.obstacles) if goal is None else goal
+
+
+# ----------------------------------------------------------------------------------------------
+# What the single and the vector env share
+# ----------------------------------------------------------------------------------------------
+
+
+def goal_observation_space() -> spaces.Dict:
+    """The GoalEnv observation space (finite bounds: those of Waypoints-v0's parts)."""
+    parts = observation_space(1)
+    low = np.concatenate([parts[name].low for name in _OBSERVATION_PARTS])
+    high = np.concatenate([parts[name].high for name in _OBSERVATION_PARTS])
+    goal = parts["root"].high[0]
+    return spaces.Dict(
+        {
+            "observation": spaces.Box(low, high, dtype=np.float32),
+            "achieved_goal": spaces.Box(-goal, goal, (2,), np.float32),
+            "desired_goal": spaces.Box(-goal, goal, (2,), np.float32),
+        }
+    )
+
+
+def goal_observations(batch: CharacterBatch) -> dict[str, np.ndarray]:
+    """(B, ...) GoalEnv observations of every character."""
+    obs = batch.observations()
+    return {
+        "observation": np.concatenate([obs[name] for name in _OBSERVATION_PARTS], axis=1),
+        "achieved_goal": obs["root"][:, :2].copy(),
+        "desired_goal": np.clip(batch.route_target, -MAX_COORDINATE, MAX_COORDINATE).astype(np.float32),
+    }
+
+
+def goal_reward(achieved_goal: Any, desired_goal: Any, reward_type: str, radius: float) -> np.ndarray | float:
+    """Sparse (-1 until within `radius`, then 0) or dense (minus the distance) goal reward."""
+    achieved = np.asarray(achieved_goal, dtype=np.float64)
+    desired = np.asarray(desired_goal, dtype=np.float64)
+    if achieved.shape[-1:] != (2,) or desired.shape[-1:] != (2,):
+        raise ValueError(f"goals must have shape (..., 2), got {achieved.shape} and {desired.shape}")
+    d = np.linalg.norm(achieved - desired, axis=-1)
+    reward = -(d >= radius).astype(np.float32) if reward_type == "sparse" else -d.astype(np.float32)
+    return float(reward) if reward.ndim == 0 else reward
+
+
+def goal_terms(batch: CharacterBatch, reward_type: str) -> dict[str, np.ndarray]:
+    reward = goal_reward(batch.pos, batch.route_target, reward_type, batch.config.arrive_radius)
+    return {"reward_goal": np.atleast_1d(reward)}
+
+
+def check_goal(goal: Any) -> np.ndarray:
+    """A goal (x, z) as a one-waypoint untimed route (1, 3) (ValueError otherwise)."""
+    arr = np.array(goal, dtype=np.float64).reshape(-1)
+    if arr.shape != (2,) or not np.isfinite(arr).all():
+        raise ValueError(f"options['goal'] must be a finite (x, z) pair, got {goal!r}")
+    return np.array([[arr[0], arr[1], np.nan]], np.float32)
+
+
+def sample_goal(
+    rng: np.random.Generator, start: np.ndarray, config: EnvConfig, obstacles: Sequence[Obstacle]
+) -> np.ndarray:
+    """A random goal (1, 3) 1.5-4 m from `start`, clear of obstacles and inside the arena."""
+    limit = config.arena_size - 0.5
+    for _ in range(100):
+        angle = rng.uniform(-np.pi, np.pi)
+        point = start[:2] + rng.uniform(*_GOAL_DISTANCE) * np.array([np.sin(angle), np.cos(angle)])
+        if (np.abs(point) <= limit).all() and obstacle_distance(point, obstacles) > 0.6:
+            break
+    point = np.clip(point, -limit, limit)
+    return np.array([[point[0], point[1], np.nan]], np.float32)

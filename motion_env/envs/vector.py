@@ -13,7 +13,6 @@ from dataclasses import fields
 from typing import Any
 
 import numpy as np
-from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
@@ -24,12 +23,17 @@ from motion_env.envs.core import (
     sample_start,
     validate_start,
 )
-from motion_env.envs.waypoints import build_characters, observation_space
+from motion_env.envs.waypoints import action_space, build_characters, caption_size, observation_space
 from motion_env.generation.request import check_text
 from motion_env.motion.skeleton import FPS
 from motion_env.motion.trajectory import validate_waypoints
 
-_RESET_OPTIONS = ("text", "waypoints", "start")
+# The autoreset modes this env implements, by Gymnasium's enum, its value or a snake-case name.
+AUTORESET_MODES: dict[Any, AutoresetMode] = {
+    key: mode
+    for mode, name in ((AutoresetMode.NEXT_STEP, "next_step"), (AutoresetMode.SAME_STEP, "same_step"))
+    for key in (mode, mode.value, name)
+}
 
 
 class WaypointsVectorEnv(VectorEnv):
@@ -40,12 +44,19 @@ class WaypointsVectorEnv(VectorEnv):
     ``max_episode_steps`` (truncation is done here, since no ``TimeLimit`` wraps a vector env;
     ``gym.make_vec`` passes the registration's 1000). ``render_mode`` must be None.
 
-    Autoreset follows Gymnasium's ``AutoresetMode.NEXT_STEP``: the step after a sub-environment
-    terminates or truncates resets it (a new caption, route and start from ``self.np_random``, or
-    the reset options given to the last :meth:`reset`), ignores its action and returns its first
-    observation with reward 0 and both flags False. (With ``frames_per_step`` > 1 the stream still
-    steps such a character through the first F - 1 frames of that step before restarting it, so
-    its ``infos["step_joints"]`` row holds F - 1 frames of the old episode, then the new first one.)
+    Autoreset (``autoreset_mode``, Gymnasium's two modes):
+
+    - ``"next_step"`` (default, Gymnasium's default): the step after a sub-environment terminates
+      or truncates resets it (a new caption, route and start from ``self.np_random``, or the reset
+      options given to the last :meth:`reset`), ignores its action and returns its first
+      observation with reward 0 and both flags False;
+    - ``"same_step"`` (what stable-baselines3 and RLlib expect): the step that ends an episode
+      also resets it and returns the new episode's first observation; the last observation and
+      info of the old one are in ``infos["final_obs"]`` and ``infos["final_info"]`` (object arrays,
+      None for the others; masks ``_final_obs`` and ``_final_info``).
+
+    A (re)started character's ``infos["step_joints"]`` row is its first frame F times, as after
+    :meth:`reset` (every info entry keeps one shape).
 
     ``reset(seed, options)`` resets every sub-environment; options ``text``, ``waypoints`` and
     ``start`` apply to all of them (a value left out is drawn per sub-environment). ``infos`` hold
@@ -55,6 +66,7 @@ class WaypointsVectorEnv(VectorEnv):
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": [], "render_fps": FPS}
+    reset_options: tuple[str, ...] = ("text", "waypoints", "start")
 
     def __init__(
         self,
@@ -67,6 +79,7 @@ class WaypointsVectorEnv(VectorEnv):
         obstacles: np.ndarray | Sequence | None = None,
         device: str = "cpu",
         robot: str | None = None,
+        autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
         **config: Any,
     ) -> None:
         if int(num_envs) < 1:
@@ -82,18 +95,27 @@ class WaypointsVectorEnv(VectorEnv):
         unknown = sorted(set(config) - {f.name for f in fields(EnvConfig)} - {"trail_length"})
         if unknown:
             raise TypeError(f"WaypointsVectorEnv got unknown arguments {unknown}")
+        self.autoreset_mode = AUTORESET_MODES.get(autoreset_mode)
+        if self.autoreset_mode is None:
+            raise ValueError(
+                f"autoreset_mode must be 'next_step' or 'same_step' (or Gymnasium's AutoresetMode), "
+                f"got {autoreset_mode!r}"
+            )
         self.config = EnvConfig(**config, trail_length=1)
         self.num_envs = int(num_envs)
         self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
         self.render_mode = None
-        self.metadata = {**self.metadata, "render_fps": FPS / self.config.frames_per_step}
+        self.metadata = {
+            **self.metadata,
+            "render_fps": FPS / self.config.frames_per_step,
+            "autoreset_mode": self.autoreset_mode,
+        }
         self.text_pool, self.obstacles, self.generator, self._batch = build_characters(
             self.config, text_pool, obstacles, generator, model_path, device
         )
         self._batch.use_robot(robot, self.num_envs)
-        bound = np.float32(self.config.action_bound)
-        self.single_action_space = spaces.Box(-bound, bound, (2,), np.float32)
-        self.single_observation_space = observation_space()
+        self.single_action_space = action_space(self.config)
+        self.single_observation_space = self._observation_space()
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self._options: dict[str, Any] = {}
@@ -107,16 +129,14 @@ class WaypointsVectorEnv(VectorEnv):
             raise TypeError(f"seed must be an int or None (one seed for the whole batch), got {seed!r}")
         super().reset(seed=seed)
         options = dict(options or {})
-        unknown = sorted(set(options) - set(_RESET_OPTIONS))
+        unknown = sorted(set(options) - set(self.reset_options))
         if unknown:
-            raise ValueError(f"unknown reset options {unknown}; known: {list(_RESET_OPTIONS)}")
+            raise ValueError(f"unknown reset options {unknown}; known: {list(self.reset_options)}")
         if options.get("text") is not None:
             options["text"] = check_text(options["text"])
-        if options.get("waypoints") is not None:
-            options["waypoints"] = validate_waypoints(options["waypoints"])
         if options.get("start") is not None:
             options["start"] = validate_start(options["start"])
-        self._options = options
+        self._options = self._check_route_options(options)
         episodes = [self._episode() for _ in range(self.num_envs)]
         texts, routes, starts = (list(x) for x in zip(*episodes))
         seed_ = int(self.np_random.integers(2**31 - 1))
@@ -125,8 +145,8 @@ class WaypointsVectorEnv(VectorEnv):
         self._steps[:] = 0
         zeros = np.zeros(self.num_envs)
         flags = np.zeros(self.num_envs, bool)
-        terms = {"reward_progress": zeros, "reward_arrival": zeros, "reward_collision": zeros}
-        return self._batch.observations(), self._infos(terms, flags, flags)
+        terms = {name: zeros for name in self._reward_terms()}
+        return self._observations(), self._infos(terms, flags, flags)
 
     def step(
         self, actions: np.ndarray
@@ -135,7 +155,9 @@ class WaypointsVectorEnv(VectorEnv):
         if batch.stream is None:
             raise RuntimeError("call reset() before step()")
         cfg = self.config
-        acts, valid, clipped = check_actions(actions, self.num_envs, cfg.action_bound, cfg.invalid_action)
+        acts, valid, clipped = check_actions(
+            actions, self.num_envs, cfg.action_bound, cfg.invalid_action, cfg.action_size
+        )
         restart = np.nonzero(self._autoreset)[0]
         live = ~self._autoreset
         batch.begin_step()
@@ -145,10 +167,9 @@ class WaypointsVectorEnv(VectorEnv):
                 # Restart just before the last frame, so a restarted character's first frame is
                 # the observation its new episode starts with (as WaypointsEnv.reset emits one).
                 for i in restart:
-                    text, route, start = self._episode()
-                    batch.restart(int(i), text, route, start)
+                    batch.restart(int(i), *self._episode())
             batch.emit_frame()
-        terms = {name: np.where(live, value, 0.0) for name, value in batch.rewards().items()}
+        terms = {name: np.where(live, value, 0.0) for name, value in self._reward_terms().items()}
         reward = sum(terms.values()).astype(np.float64)
         terminated = live & cfg.terminate_on_arrival & batch.reached
         self._steps = np.where(live, self._steps + 1, 0)
@@ -156,9 +177,47 @@ class WaypointsVectorEnv(VectorEnv):
             truncated = np.zeros(self.num_envs, bool)
         else:
             truncated = live & ~terminated & (self._steps >= self.max_episode_steps)
-        self._autoreset = terminated | truncated
+        done = terminated | truncated
         infos = self._infos(terms, clipped & live, ~valid & live)
-        return batch.observations(), reward, terminated, truncated, infos
+        obs = self._observations()
+        if self.autoreset_mode == AutoresetMode.NEXT_STEP:
+            self._autoreset = done
+            return obs, reward, terminated, truncated, infos
+        return self._reset_ended(np.nonzero(done)[0], obs, reward, terminated, truncated, infos)
+
+    def _reset_ended(
+        self,
+        ended: np.ndarray,
+        obs: dict[str, np.ndarray],
+        reward: np.ndarray,
+        terminated: np.ndarray,
+        truncated: np.ndarray,
+        infos: dict[str, Any],
+    ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """Same-step autoreset: restart the characters whose episode ended, emit their first frame
+        and return it, the final observations and infos under ``final_obs`` / ``final_info``."""
+        if len(ended) == 0:
+            return obs, reward, terminated, truncated, infos
+        final_obs = np.full(self.num_envs, None, dtype=object)
+        final_info = np.full(self.num_envs, None, dtype=object)
+        for i in ended:
+            final_obs[i] = {name: value[i].copy() for name, value in obs.items()}
+            final_info[i] = {k: v[i] for k, v in infos.items() if not k.startswith("_")}
+        batch = self._batch
+        for i in ended:
+            batch.restart(int(i), *self._episode())
+        batch.emit_frame(ended)
+        self._steps[ended] = 0
+        flags = np.zeros(self.num_envs, bool)
+        zeros = {name: np.zeros(self.num_envs) for name in infos if name.startswith("reward_")}
+        new = self._infos(zeros, flags, flags)
+        for name, value in infos.items():  # the others keep this step's info
+            if not name.startswith("_"):
+                value[ended] = new[name][ended]
+        mask = np.zeros(self.num_envs, bool)
+        mask[ended] = True
+        infos.update(final_obs=final_obs, final_info=final_info, _final_obs=mask, _final_info=mask.copy())
+        return self._observations(), reward, terminated, truncated, infos
 
     def set_text(self, text: str, index: int | None = None) -> None:
         """Change the caption of one character (or all, index=None) mid-episode."""
@@ -177,9 +236,16 @@ class WaypointsVectorEnv(VectorEnv):
         text = opts.get("text") or self.text_pool[int(rng.integers(len(self.text_pool)))]
         start = opts.get("start")
         start = sample_start(rng, self.config, self.obstacles) if start is None else start
-        route = opts.get("waypoints")
-        route = sample_route(rng, start, self.config, self.obstacles) if route is None else route
-        return text, route, start
+        return text, self._route(start), start
+
+    def _check_route_options(self, options: dict[str, Any]) -> dict[str, Any]:
+        if options.get("waypoints") is not None:
+            options["waypoints"] = validate_waypoints(options["waypoints"])
+        return options
+
+    def _route(self, start: np.ndarray) -> np.ndarray:
+        route = self._options.get("waypoints")
+        return sample_route(self.np_random, start, self.config, self.obstacles) if route is None else route
 
     def _infos(
         self, terms: dict[str, np.ndarray], clipped: np.ndarray, invalid: np.ndarray
@@ -191,6 +257,7 @@ class WaypointsVectorEnv(VectorEnv):
             "step_joints": batch.step_joints(),
             "text": np.array(batch.texts, dtype=object),
             "frame": np.asarray(batch.stream.frame_index, dtype=np.int64).copy(),
+            "route_length": batch.route_count.copy(),
             "route_index": batch.k.copy(),
             "route_target": target.astype(np.float32),
             "command": batch.command_xz.astype(np.float32),
@@ -206,3 +273,14 @@ class WaypointsVectorEnv(VectorEnv):
         for name in list(info):
             info[f"_{name}"] = np.ones(self.num_envs, bool)
         return info
+
+    # -- what GoalReach's vector env changes ---------------------------------------------------
+
+    def _observation_space(self) -> Any:
+        return observation_space(caption_size(self.generator))
+
+    def _observations(self) -> dict[str, np.ndarray]:
+        return self._batch.observations()
+
+    def _reward_terms(self) -> dict[str, np.ndarray]:
+        return self._batch.rewards()

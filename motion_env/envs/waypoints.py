@@ -11,6 +11,8 @@ from gymnasium import spaces
 
 from motion_env.envs.arena import Obstacle, circles, validate_obstacles
 from motion_env.envs.core import (
+    OBS_BOUNDS,
+    ROUTE_AHEAD,
     CharacterBatch,
     EnvConfig,
     check_actions,
@@ -21,7 +23,7 @@ from motion_env.envs.core import (
 )
 from motion_env.generation.request import check_text
 from motion_env.motion.skeleton import FPS, NUM_JOINTS
-from motion_env.motion.trajectory import validate_waypoints
+from motion_env.motion.trajectory import MAX_COORDINATE, validate_waypoints
 
 RENDER_STYLES = ("stick", "humanoid")
 
@@ -54,21 +56,42 @@ def build_characters(
     return pool, checked, make_generator(generator, model_path, device), CharacterBatch(config, checked)
 
 
-def observation_space() -> spaces.Dict:
-    """The Dict observation space of one character (see :class:`WaypointsEnv`)."""
-    inf = np.float32(np.inf)
+def caption_size(generator: Any) -> int:
+    """Width of the observation's "caption": the path controller's caption projection."""
+    return int(generator.controller.config.text_proj)
+
+
+def observation_space(caption_dim: int) -> spaces.Dict:
+    """The Dict observation space of one character (see :class:`WaypointsEnv`).
+
+    Every bound is finite (what the env checkers ask for); :meth:`CharacterBatch.observations`
+    clips into them.
+    """
+
+    def box(bound: float, size: int) -> spaces.Box:
+        return spaces.Box(-np.float32(bound), np.float32(bound), (size,), np.float32)
+
     return spaces.Dict(
         {
             "root": spaces.Box(
-                low=np.array([-inf, -inf, -1.0, -1.0], np.float32),
-                high=np.array([inf, inf, 1.0, 1.0], np.float32),
+                low=np.array([-MAX_COORDINATE, -MAX_COORDINATE, -1.0, -1.0], np.float32),
+                high=np.array([MAX_COORDINATE, MAX_COORDINATE, 1.0, 1.0], np.float32),
                 dtype=np.float32,
             ),
-            "target": spaces.Box(-inf, inf, (2,), np.float32),
-            "velocity": spaces.Box(-inf, inf, (3,), np.float32),
-            "pose": spaces.Box(-inf, inf, (NUM_JOINTS * 3,), np.float32),
+            "target": box(OBS_BOUNDS["target"], 2),
+            "route_ahead": box(OBS_BOUNDS["route_ahead"], ROUTE_AHEAD * 2),
+            "route_state": spaces.Box(0.0, 1.0, (3,), np.float32),
+            "velocity": box(OBS_BOUNDS["velocity"], 3),
+            "pose": box(OBS_BOUNDS["pose"], NUM_JOINTS * 3),
+            "caption": box(OBS_BOUNDS["caption"], caption_dim),
         }
     )
+
+
+def action_space(config: EnvConfig) -> spaces.Box:
+    """The action Box of one character for `config` (see :class:`WaypointsEnv`)."""
+    bound = np.float32(config.action_bound)
+    return spaces.Box(-bound, bound, (config.action_size,), np.float32)
 
 
 class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
@@ -181,8 +204,8 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         generator: Any | None = None,
         model_path: str | None = None,
         text_pool: Sequence[str] | None = None,
-        action_mode: str = "absolute",
-        frames_per_step: int = 1,
+        action_mode: str = "normalized",
+        frames_per_step: int = 4,
         arrive_radius: float = 0.5,
         terminate_on_arrival: bool = True,
         render_mode: str | None = None,
@@ -192,6 +215,9 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         progress_weight: float = 1.0,
         arrival_bonus: float = 1.0,
         collision_penalty: float = 1.0,
+        time_penalty: float = 0.1,
+        reach: float = 3.0,
+        follow_action: bool = True,
         invalid_action: str = "raise",
         random_start: bool = False,
         device: str = "cpu",
@@ -209,6 +235,9 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             progress_weight=progress_weight,
             arrival_bonus=arrival_bonus,
             collision_penalty=collision_penalty,
+            time_penalty=time_penalty,
+            reach=reach,
+            follow_action=follow_action,
             invalid_action=invalid_action,
             random_start=random_start,
         )
@@ -227,10 +256,10 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             self.config, text_pool, obstacles, generator, model_path, device
         )
         self._batch.use_robot(robot, 1)
-        bound = np.float32(self.config.action_bound)
-        self.action_space = spaces.Box(-bound, bound, (2,), np.float32)
-        self.observation_space = observation_space()
+        self.action_space = action_space(self.config)
+        self.observation_space = observation_space(caption_size(self.generator))
         self._flags = (False, False)
+        self._terminated = False
 
     # -- Gymnasium API -------------------------------------------------------------------------
 
@@ -242,23 +271,32 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         stream_seed = int(self.np_random.integers(2**31 - 1))
         self._batch.start(self.generator, [text], [route], start[None], seed=stream_seed)
         self._flags = (False, False)
+        self._terminated = False
         return self._observation(), self._info()
 
     def step(self, action: np.ndarray) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         if self._batch.stream is None:
             raise RuntimeError("call reset() before step()")
         cfg = self.config
-        actions, valid, clipped = check_actions(action, 1, cfg.action_bound, cfg.invalid_action)
+        actions, valid, clipped = check_actions(
+            action, 1, cfg.action_bound, cfg.invalid_action, cfg.action_size
+        )
+        if self._terminated:
+            gym.logger.warn(
+                "step() called after the episode terminated; call reset() to start a new one "
+                "(the character moves on, but no reward is given until then)"
+            )
         batch = self._batch
         batch.begin_step()
         batch.command(actions, valid)
         for _ in range(cfg.frames_per_step):
             batch.emit_frame()
         self._flags = (bool(clipped[0]), not bool(valid[0]))
-        terms = {name: float(v[0]) for name, v in self._reward_terms().items()}
+        scale = 0.0 if self._terminated else 1.0
+        terms = {name: scale * float(v[0]) for name, v in self._reward_terms().items()}
         reward = float(sum(terms.values()))
-        terminated = bool(cfg.terminate_on_arrival and batch.reached[0])
-        return self._observation(), reward, terminated, False, {**self._info(), **terms}
+        self._terminated |= bool(cfg.terminate_on_arrival and batch.reached[0])
+        return self._observation(), reward, self._terminated, False, {**self._info(), **terms}
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:
@@ -362,7 +400,7 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             "step_joints": batch.step_joints()[0],
             "text": batch.texts[0],
             "frame": int(batch.stream.frame_index[0]),
-            "route": batch.routes[0][:, :2].copy(),  # x, z only: NaN times would break equality checks
+            "route_length": len(batch.routes[0]),
             "route_index": int(batch.k[0]),
             "route_target": route_target.astype(np.float32),
             "command": batch.command_xz[0].astype(np.float32),

@@ -35,6 +35,8 @@ from motion_env.generation.pipeline import CONTROLLER_STREAM, TOKEN_STREAM, Pipe
 from motion_env.generation.recompose import route_anchors, spread_residuals
 from motion_env.generation.request import (
     check_feasible,
+    check_joint_targets,
+    check_objectives,
     check_route,
     check_start,
     check_starts,
@@ -44,10 +46,12 @@ from motion_env.generation.request import (
     resolve_seed,
 )
 from motion_env.generation.route import plan_route
+from motion_env.generation.stream_control import StreamControl
 from motion_env.models.controller import ControllerState
 from motion_env.models.path_features import D_PATH, token_path_features
 from motion_env.models.sampling import sample_tokens
 from motion_env.motion.skeleton import FEATURE_DIM, FOOT_CONTACT, NUM_JOINTS
+from motion_env.objectives import HeightLimit
 
 __all__ = ["MotionStream"]
 
@@ -157,6 +161,7 @@ class MotionStream:
         self._buffer_root = np.zeros((b, rate, 3), np.float32)
         self._buffer_pos = np.full(b, rate, np.int64)  # rate = empty
         self._root = start_arr.copy()
+        self._control = StreamControl(b)  # joint targets and height limits (set_joint_targets, ...)
 
         emb = g.encode_text(self._texts)
         self._cache = g.gpt.new_cache(emb, g.sampling.guidance)
@@ -180,6 +185,13 @@ class MotionStream:
     def texts(self) -> list[str]:
         """The current caption of each character."""
         return list(self._texts)
+
+    @torch.no_grad()
+    def caption_features(self) -> np.ndarray:
+        """(B, D) float32: each character's current caption as the path controller reads it (its
+        projection of the sentence embedding; D = 64 for the shipped model). Compact enough for an
+        observation, and it is what sets the pace of walking versus jogging."""
+        return self._pipe.controller.text_proj(self._front.text).cpu().numpy().astype(np.float32)
 
     # ------------------------------------------------------------------ steering
     def _rows(self, index: int | None) -> np.ndarray:
@@ -218,6 +230,53 @@ class MotionStream:
             self._routes[i] = plan_route(check_feasible(route, where, self.infeasible, frame), where, frame)
             self._dirty[i] = self._route_changed[i] = True
 
+    def set_joint_targets(
+        self, targets: np.ndarray | None, index: int | None = None, first_frame: int | None = None
+    ) -> None:
+        """Give one character (`index`) or all (None) joint targets from now on (replacing earlier ones).
+
+        Args:
+            targets: (F, 22, 3) world positions (metres), NaN where a joint is free; row k is
+                episode frame ``first_frame + k``. None removes the targets.
+            first_frame: the episode frame of row 0 (default: the next frame to be emitted).
+
+        Look-ahead: a target is met exactly at its frame if it is set at least FADE (10) frames
+        before it (the joint blends into it over those frames); a pelvis target also bends the path
+        once it is within ``lookahead_frames`` (20). Targets for frames already decoded (up to
+        ``control_delay_frames`` after the last emitted one) are not used, with a warning; emitted
+        frames never change. See :mod:`motion_env.generation.stream_control`.
+        """
+        rows = self._rows(index)
+        start = int(self._emitted[rows[0]]) if first_frame is None else first_frame
+        if isinstance(start, bool) or int(start) != start or start < 0:
+            raise ValueError(f"first_frame must be a frame index >= 0, got {first_frame!r}")
+        checked = check_joint_targets(targets, None, "joint_targets", int(start))
+        for i in rows:
+            first = int(self._emitted[i]) if first_frame is None else int(start)
+            self._control.set_targets(int(i), checked, first, int(self._decoded[i]))
+
+    def set_objectives(self, objectives: Sequence[Any] | None, index: int | None = None) -> None:
+        """Height limits for one character (`index`) or all (None) from now on (replacing earlier ones).
+
+        The stream takes :class:`~motion_env.objectives.HeightLimit` (frames are episode frames);
+        KeepOut, StayInside and callables need the whole clip (``generate``) and raise here.
+        """
+        objs = check_objectives(objectives)
+        bad = [k for k, o in enumerate(objs) if not isinstance(o, HeightLimit)]
+        if bad:
+            raise ValueError(
+                f"objectives[{bad[0]}] ({type(objs[bad[0]]).__name__}): the stream takes HeightLimit "
+                "objectives only; KeepOut, StayInside and callables need a whole clip (MotionGenerator.generate), "
+                "or plan the route around obstacles (policies.AStarPolicy)"
+            )
+        for i in self._rows(index):
+            self._control.limits[int(i)] = list(objs)
+
+    def control_summary(self, index: int = 0) -> str:
+        """How well character `index` has met its joint targets so far (errors of the emitted ones)."""
+        (i,) = self._rows(index)
+        return self._control.describe(int(i))
+
     def reset(
         self,
         index: int,
@@ -245,22 +304,35 @@ class MotionStream:
         self._dirty[i] = self._route_changed[i] = False
         self._codes[i] = []
         self._feet.reset(i)
+        self._control.reset(i)
         self._prev[i] = 0
         self._buffer_pos[i] = self._rate
         self._root[i] = start_arr
 
     # ------------------------------------------------------------------ emission
     @torch.no_grad()
-    def step(self) -> np.ndarray:
-        """Emit the next frame of every character: (B, 22, 3) float32 world joints."""
-        need = np.nonzero(self._buffer_pos >= self._rate)[0]
+    def step(self, rows: Sequence[int] | np.ndarray | None = None) -> np.ndarray:
+        """Emit the next frame of every character, or only of `rows` (the others wait).
+
+        Returns:
+            (B, 22, 3) float32 world joints, or (len(rows), 22, 3) in the order of `rows`.
+        """
+        if rows is None:
+            rows = np.arange(self.batch_size)
+        else:
+            rows = np.asarray(rows, dtype=np.int64).reshape(-1)
+            if len(np.unique(rows)) != len(rows) or ((rows < 0) | (rows >= self.batch_size)).any():
+                raise IndexError(
+                    f"rows must be distinct indices in [0, {self.batch_size}), got {rows.tolist()}"
+                )
+        need = rows[self._buffer_pos[rows] >= self._rate]
         if len(need):
-            self._produce(need)
-        rows = np.arange(self.batch_size)
-        out = self._buffer[rows, self._buffer_pos].copy()
-        self._root = self._buffer_root[rows, self._buffer_pos].copy()
-        self._buffer_pos += 1
-        self._emitted += 1
+            self._produce(np.sort(need))
+        pos = self._buffer_pos[rows]
+        out = self._buffer[rows, pos].copy()
+        self._root[rows] = self._buffer_root[rows, pos]
+        self._buffer_pos[rows] += 1
+        self._emitted[rows] += 1
         return out
 
     # ------------------------------------------------------------------ internals
@@ -323,10 +395,17 @@ class MotionStream:
         path = raw.copy()
         path[:, :2] += self._snapped[i, anchor % self._ring, :2] - raw[0, :2]
         route = self._routes[i]
-        if route is None:
+        pelvis = self._control.pelvis_anchors(i, anchor, last) if self._control.active(i) else None
+        if route is None and pelvis is None:
             return path.astype(np.float32)
         queue = int(self._h_queue[i, anchor % self._ring])
-        anchors = route_anchors(path, route[queue:], first=anchor, open_end=True)
+        anchors = np.zeros((0, 3), np.float32)
+        if route is not None:
+            anchors = route_anchors(path, route[queue:], first=anchor, open_end=True)
+        if pelvis is not None and len(pelvis):  # pelvis targets bend the path like timed waypoints
+            anchors = anchors[~np.isin(anchors[:, 2], pelvis[:, 2])]
+            anchors = np.concatenate([anchors, pelvis])
+            anchors = anchors[np.argsort(anchors[:, 2], kind="stable")]
         return spread_residuals(path, anchors).astype(np.float32)
 
     def _produce(self, rows: np.ndarray) -> None:
@@ -382,6 +461,8 @@ class MotionStream:
             joints, path = g.compose(feats, root, f + rate - begin)
             self._snapped[i, frames % ring] = ahead[n][:rate]
             self._buffer[i] = self._feet.apply(int(i), joints[-rate:], body[n][:, FOOT_CONTACT])
+            if self._control.active(int(i)):
+                self._buffer[i] = self._control.apply(int(i), f, self._buffer[i], body[n][:, FOOT_CONTACT])
             self._buffer_root[i] = path[-rate:]
         self._decoded[rows] += rate
         self._buffer_pos[rows] = 0

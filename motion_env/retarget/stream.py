@@ -23,6 +23,7 @@ smooth than :func:`~motion_env.retarget.retarget` of the same frames.
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -85,15 +86,18 @@ class StreamRetargeter:
             self._scales[i] = None
             self.qpos[i] = self.robot.home
 
-    def step(self, joints: np.ndarray) -> np.ndarray:
+    def step(self, joints: np.ndarray, rows: Sequence[int] | np.ndarray | None = None) -> np.ndarray:
         """The robot's qpos (B, nq) float64 for the human frames `joints` (B, 22, 3), motion axes
-        (Y up), each character's next frame."""
+        (Y up), each character's next frame; with `rows`, `joints` holds only those characters'
+        frames (len(rows), 22, 3) and the others keep their pose."""
         joints = check_joints(np.asarray(joints, dtype=np.float64), "joints")
-        if joints.ndim != 3 or joints.shape[0] != self.batch:
-            raise ValueError(f"joints must be ({self.batch}, 22, 3), got {joints.shape}")
+        rows = np.arange(self.batch) if rows is None else np.asarray(rows, np.int64).reshape(-1)
+        if joints.ndim != 3 or joints.shape[0] != len(rows):
+            raise ValueError(f"joints must be ({len(rows)}, 22, 3), got {joints.shape}")
         bot, model = self.robot, self.robot.model
-        for b, solver in enumerate(self._solvers):
-            frame = joints[b : b + 1]
+        for n, b in enumerate(rows):
+            solver = self._solvers[b]
+            frame = joints[n : n + 1]
             first = self._scales[b] is None
             if first:
                 self._scales[b] = limb_scales(bot, frame)

@@ -36,8 +36,13 @@ def trained(pretrained_generator):
     return pretrained_generator
 
 
+# Most tests here check the route semantics with world-point actions, one frame per step; the
+# learning defaults (normalised actions, four frames) have their own tests in test_rl.py.
+WORLD = {"action_mode": "absolute", "frames_per_step": 1}
+
+
 def _make(gen, env_id="motion_env/Waypoints-v0", **kwargs):
-    return gym.make(env_id, generator=gen, **kwargs)
+    return gym.make(env_id, generator=gen, **{**WORLD, **kwargs})
 
 
 # ----------------------------------------------------------------------------------------------
@@ -82,7 +87,10 @@ def test_observation_layout_and_info(gen):
     obs, info = env.reset(seed=1, options={"text": "a person walks", "waypoints": [[0, 3], [2, 5]]})
     assert env.observation_space.contains(obs)
     flat = gym.wrappers.FlattenObservation(env)
-    assert flat.observation_space.shape == (75,)
+    caption = gen.controller.config.text_proj
+    assert flat.observation_space.shape == (4 + 2 + 6 + 3 + 3 + 66 + caption,)
+    assert info["step_joints"].shape == (3, 22, 3)  # after reset: the first frame, three times
+    assert (info["step_joints"] == info["joints"]).all()
     obs, reward, terminated, truncated, info = env.step(np.array([0.0, 3.0], np.float32))
     assert info["joints"].shape == (22, 3) and info["joints"].dtype == np.float32
     assert info["step_joints"].shape == (3, 22, 3)
@@ -124,12 +132,14 @@ def test_same_seed_and_options_give_the_same_poses(gen):
 def test_random_reset_draws_caption_route_and_start_from_the_seed(gen):
     env = _make(gen, text_pool=["a person walks", "a person runs"], random_start=True)
     _, a = env.reset(seed=7)
+    route = env.unwrapped.route  # the whole route (K, 3); info has only its length
     _, b = env.reset(seed=7)
-    _, c = env.reset(seed=8)
+    np.testing.assert_array_equal(route, env.unwrapped.route)
     assert a["text"] in ("a person walks", "a person runs")
-    np.testing.assert_array_equal(a["route"], b["route"])
-    assert a["text"] == b["text"] and not np.array_equal(a["route"], c["route"])
-    assert 2 <= len(a["route"]) <= 4
+    assert a["text"] == b["text"] and a["route_length"] == len(route)
+    env.reset(seed=8)
+    assert not np.array_equal(route, env.unwrapped.route)
+    assert 2 <= len(route) <= 4
     with pytest.raises(ValueError, match="unknown reset options"):
         env.reset(options={"goal": [1, 1]})
     with pytest.raises(ValueError, match="waypoints"):
@@ -213,7 +223,8 @@ def test_progress_reward_is_the_distance_gained(gen):
         obs, reward, _, _, info = env.step(np.array([-3.0, 0.0], np.float32))
         assert info["route_index"] == 0
         assert np.isclose(info["reward_progress"], 2.0 * (before - info["distance"]), atol=1e-5)
-        assert np.isclose(reward, info["reward_progress"] + info["reward_arrival"] + info["reward_collision"])
+        assert np.isclose(info["reward_time"], -0.1 / 20)  # the time cost: 0.1 per second
+        assert np.isclose(reward, sum(v for k, v in info.items() if k.startswith("reward_")))
 
 
 def test_collision_term_when_the_pelvis_is_inside_an_obstacle(gen):
@@ -345,7 +356,7 @@ def test_goal_reach_compute_reward_works_on_batches(gen):
 
 def test_vector_env_runs_n_characters_in_one_stream(gen):
     envs = gym.make_vec(
-        "motion_env/Waypoints-v0", num_envs=3, vectorization_mode="vector_entry_point", generator=gen
+        "motion_env/Waypoints-v0", num_envs=3, vectorization_mode="vector_entry_point", generator=gen, **WORLD
     )
     assert envs.unwrapped._batch.stream is None
     obs, infos = envs.reset(seed=0)
@@ -361,7 +372,7 @@ def test_vector_env_runs_n_characters_in_one_stream(gen):
 
 def test_vector_env_autoresets_on_the_next_step(gen):
     envs = gym.make_vec(
-        "motion_env/Waypoints-v0", num_envs=2, vectorization_mode="vector_entry_point", generator=gen,
+        "motion_env/Waypoints-v0", num_envs=2, vectorization_mode="vector_entry_point", generator=gen, **WORLD,
         max_episode_steps=3,
     )  # fmt: skip
     # A route that ends where the characters stand: they terminate on the first step.
@@ -383,7 +394,7 @@ def test_vector_env_autoresets_on_the_next_step(gen):
 def test_vector_env_is_deterministic_given_the_seed(gen):
     def run():
         envs = gym.make_vec("motion_env/Waypoints-v0", num_envs=2, vectorization_mode="vector_entry_point",
-                            generator=gen)  # fmt: skip
+                            generator=gen, **WORLD)  # fmt: skip
         _, infos = envs.reset(seed=11)
         frames = []
         for _ in range(6):
@@ -410,7 +421,7 @@ def _walk_route(generator, seed: int, edits: bool) -> tuple[np.ndarray, bool]:
     """
     from policies import WaypointPolicy
 
-    env = gym.make("motion_env/Waypoints-v0", generator=generator, max_episode_steps=800)
+    env = gym.make("motion_env/Waypoints-v0", generator=generator, max_episode_steps=800, **WORLD)
     obs, info = env.reset(seed=seed, options={"text": "a person walks forward", "waypoints": ROUTE})
     policy = WaypointPolicy(ROUTE)
     frames = [info["joints"]]

@@ -19,7 +19,10 @@ def test_waypoints_env_emits_robot_qpos_every_step(random_generator) -> None:
     from motion_env.retarget.limits import range_violations
 
     nq = load_robot("unitree_g1").model.nq
-    env = gym.make("motion_env/Waypoints-v0", generator=random_generator, robot="unitree_g1")
+    env = gym.make(
+        "motion_env/Waypoints-v0", generator=random_generator, robot="unitree_g1",
+        action_mode="absolute", frames_per_step=1,
+    )  # fmt: skip
     _, info = env.reset(seed=0, options={"text": "a person walks", "waypoints": [[0, 3]]})
     frames = [info["joints"]]
     qpos = [info["robot_qpos"]]
@@ -48,7 +51,7 @@ def test_waypoints_env_emits_robot_qpos_every_step(random_generator) -> None:
 def test_vector_env_emits_robot_qpos_per_character(random_generator) -> None:
     envs = gym.make_vec(
         "motion_env/Waypoints-v0", num_envs=2, vectorization_mode="vector_entry_point",
-        generator=random_generator, robot="unitree_g1",
+        generator=random_generator, robot="unitree_g1", action_mode="absolute",
     )  # fmt: skip
     _, infos = envs.reset(seed=0)
     nq = infos["robot_qpos"].shape[1]
