@@ -52,7 +52,7 @@ def outputs() -> dict[str, np.ndarray]:
         frames.append(stream.step())
     out["stream"] = np.stack(frames)
 
-    env = gym.make("motion_env/Waypoints-v0", generator=gen, frames_per_step=2)
+    env = gym.make("motion_env/Waypoints-v0", generator=gen, frames_per_step=2, action_mode="absolute")
     obs, info = env.reset(seed=0, options={"text": "a person jogs", "waypoints": [[0, 3], [3, 6]]})
     joints = []
     for t in range(60):
@@ -64,14 +64,29 @@ def outputs() -> dict[str, np.ndarray]:
     out["env"] = np.stack(joints)
 
     venv = gym.make_vec(
-        "motion_env/Waypoints-v0", num_envs=3, vectorization_mode="vector_entry_point", generator=gen
-    )
+        "motion_env/Waypoints-v0", num_envs=3, vectorization_mode="vector_entry_point", generator=gen,
+        action_mode="absolute", frames_per_step=1,
+    )  # fmt: skip
     obs, info = venv.reset(seed=1)
     vj = []
     for _ in range(40):
         obs, _, _, _, info = venv.step(np.asarray(obs["target"], np.float32))
         vj.append(np.asarray(obs["pose"]))
     out["vector_env"] = np.stack(vj)
+
+    # A learner: a new normalised target for every character at every step (the route re-planned
+    # each token), with same-step autoresets.
+    venv = gym.make_vec(
+        "motion_env/Waypoints-v0", num_envs=4, vectorization_mode="vector_entry_point", generator=gen,
+        follow_action=False, max_episode_steps=12, autoreset_mode="same_step",
+    )  # fmt: skip
+    obs, info = venv.reset(seed=2)
+    rng = np.random.default_rng(0)
+    vj = []
+    for _ in range(40):
+        obs, _, _, _, info = venv.step(rng.uniform(-1, 1, (4, 2)).astype(np.float32))
+        vj.append(info["step_joints"])
+    out["learner_env"] = np.stack(vj)
     return out
 
 

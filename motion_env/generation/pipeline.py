@@ -14,7 +14,7 @@ A request, already checked (:mod:`motion_env.generation.request`), goes through:
    (:meth:`Pipeline.sample_tokens`, :mod:`motion_env.models.sampling`);
 4. **decode**: the VQ-VAE decodes tokens to normalised features, which the
    :class:`~motion_env.models.normalizer.Normalizer` turns back into 263-d features
-   (:meth:`Pipeline.decode`, :meth:`Pipeline.decode_latest` for the stream);
+   (:meth:`Pipeline.decode`, :meth:`Pipeline.decode_next` for the stream);
 5. **body on the path**: the decoded body, relative to its root, is placed on the root path and
    rebuilt on the skeleton's bone lengths (:meth:`Pipeline.compose`: decoded legs come out up to
    9 cm short);
@@ -48,7 +48,7 @@ from motion_env.models.gpt import TokenGPT
 from motion_env.models.normalizer import Normalizer
 from motion_env.models.path_features import LOOKAHEAD_FRAMES, token_path_features
 from motion_env.models.sampling import SamplingConfig
-from motion_env.models.vqvae import VQVAE
+from motion_env.models.vqvae import VQVAE, DecoderStream
 from motion_env.motion.kinematics import with_bone_lengths
 
 __all__ = ["CONTROLLER_STREAM", "TOKEN_STREAM", "Pipeline", "row_generator"]
@@ -202,9 +202,10 @@ class Pipeline:
         """(B, N) tokens -> (B, N * rate, 263) float32 features."""
         return self.normalizer.denormalize(self.vqvae.decode(tokens.to(self.device)))
 
-    def decode_latest(self, recent_codes: torch.Tensor) -> np.ndarray:
-        """(B, n) most recent tokens -> (B, rate, 263) float32 features of the newest one."""
-        return self.normalizer.denormalize(self.vqvae.decode_stream(recent_codes.to(self.device)))
+    def decode_next(self, decoder: DecoderStream, codes: torch.Tensor, rows: np.ndarray) -> np.ndarray:
+        """The stream's decode: each of `rows`' newest token (`codes`, (N,)) -> (N, rate, 263)
+        float32 features, through the decoder's per-row history (:class:`DecoderStream`)."""
+        return self.normalizer.denormalize(decoder.step(codes.to(self.device), rows))
 
     # ------------------------------------------------------------------ 5. body on the path
     def compose(

@@ -14,8 +14,8 @@ frames) at a time:
   look-ahead is rolled out again from the last decoded frame, so no emitted pose moves and the
   path does not jump.
 - Tokens are sampled one at a time with the GPT's KV cache; the VQ-VAE decodes the newest token
-  from its finite context (:meth:`motion_env.models.vqvae.VQVAE.decode_stream`); the recompose runs on a
-  short window of recent frames, of which only the new ones are emitted; the foot cleanup
+  with its convolutions' history cached (:class:`motion_env.models.vqvae.DecoderStream`); the
+  recompose runs on a short window of recent frames, of which only the new ones are emitted; the foot cleanup
   (:class:`~motion_env.generation.feet.FootPinner`) is causal, frame by frame, as for whole clips.
 - Snapping is causal too: the residual to each waypoint inside the look-ahead is spread linearly
   from the last decoded frame to the waypoint's frame.
@@ -133,7 +133,6 @@ class MotionStream:
         self._tok_gens = [row_generator(self.seed, i, TOKEN_STREAM) for i in range(b)]
         self._rate = rate = g.rate
         self._horizon = g.path_horizon
-        self._context = g.vqvae.decoder_context_tokens
         self.lookahead_frames = self._horizon
         self.control_delay_frames = rate
         # One ring of per-frame history, indexed by frame % R: the body context, the anchor one
@@ -155,7 +154,7 @@ class MotionStream:
         self._decoded = np.zeros(b, np.int64)
         self._dirty = np.zeros(b, bool)
         self._route_changed = np.zeros(b, bool)
-        self._codes: list[list[int]] = [[] for _ in range(b)]
+        self._decoder = g.vqvae.decoder_stream(b)
         self._prev = torch.zeros(b, dtype=torch.long)
         self._buffer = np.zeros((b, rate, NUM_JOINTS, 3), np.float32)
         self._buffer_root = np.zeros((b, rate, 3), np.float32)
@@ -266,7 +265,8 @@ class MotionStream:
         if bad:
             raise ValueError(
                 f"objectives[{bad[0]}] ({type(objs[bad[0]]).__name__}): the stream takes HeightLimit "
-                "objectives only; KeepOut, StayInside and callables need a whole clip (MotionGenerator.generate), "
+                "objectives only; KeepOut, StayInside and callables need a whole clip "
+                "(MotionGenerator.generate), "
                 "or plan the route around obstacles (policies.AStarPolicy)"
             )
         for i in self._rows(index):
@@ -302,7 +302,7 @@ class MotionStream:
         self._snapped[i, 0] = start_arr
         self._emitted[i] = self._decoded[i] = 0
         self._dirty[i] = self._route_changed[i] = False
-        self._codes[i] = []
+        self._decoder.reset([i])
         self._feet.reset(i)
         self._control.reset(i)
         self._prev[i] = 0
@@ -347,27 +347,29 @@ class MotionStream:
         r = rows.cpu().numpy()
         self._raw[r, (state.frame % self._ring).cpu().numpy()] = state.root.cpu().numpy()
 
-    def _restore(self, i: int) -> None:
-        """Roll character i's controller back to its last decoded frame (after a caption/route change)."""
+    def _restore(self, rows: np.ndarray) -> None:
+        """Roll the controller of `rows` back to their last decoded frame (after a caption/route change)."""
         g = self._pipe
-        anchor = max(int(self._decoded[i]) - 1, 0)
-        slot = anchor % self._ring
-        rows = torch.tensor([i], device=g.device)
-        sub = _take(self._front, rows)
+        anchors = np.maximum(self._decoded[rows] - 1, 0)
+        slots = torch.as_tensor(anchors % self._ring, device=g.device)
+        rows_t = torch.as_tensor(rows, device=g.device)
         sub = replace(
-            sub,
-            pos=self._h_pos[rows, slot].clone(),
-            theta=self._h_theta[rows, slot].clone(),
-            vel=self._h_vel[rows, slot].clone(),
-            hidden=self._h_hidden[rows, slot].clone(),
-            frame=torch.tensor([anchor], device=g.device),
-            queue=self._h_queue[rows, slot].clone(),
+            _take(self._front, rows_t),
+            pos=self._h_pos[rows_t, slots].clone(),
+            theta=self._h_theta[rows_t, slots].clone(),
+            vel=self._h_vel[rows_t, slots].clone(),
+            hidden=self._h_hidden[rows_t, slots].clone(),
+            frame=torch.as_tensor(anchors, device=g.device),
+            queue=self._h_queue[rows_t, slots].clone(),
         )
-        self._front = _put(self._front, rows, sub)
-        if self._route_changed[i]:
-            self._front = g.controller.set_waypoints(self._front, self._routes[i], index=int(i))
-            self._h_queue[i, slot] = self._front.queue[i]
-        self._dirty[i] = self._route_changed[i] = False
+        self._front = _put(self._front, rows_t, sub)
+        changed = self._route_changed[rows]
+        if changed.any():
+            moved = rows[changed]
+            self._front = g.controller.set_routes(self._front, moved, [self._routes[i] for i in moved])
+            moved_t = torch.as_tensor(moved, device=g.device)
+            self._h_queue[moved_t, slots[torch.as_tensor(changed)]] = self._front.queue[moved_t]
+        self._dirty[rows] = self._route_changed[rows] = False
 
     def _advance(self, rows: np.ndarray, targets: np.ndarray) -> None:
         """Step the controller of `rows` until each reaches its target frame, recording every frame."""
@@ -411,8 +413,9 @@ class MotionStream:
     def _produce(self, rows: np.ndarray) -> None:
         """Decode the next token of each character in `rows` and fill their frame buffers."""
         g, rate, ring, horizon = self._pipe, self._rate, self._ring, self._horizon
-        for i in rows[self._dirty[rows]]:
-            self._restore(int(i))
+        dirty = rows[self._dirty[rows]]
+        if len(dirty):
+            self._restore(dirty)
         first = self._decoded[rows]  # (N,) first frame of the new token
         self._advance(rows, first + horizon)
 
@@ -439,16 +442,9 @@ class MotionStream:
         rows_t = torch.as_tensor(rows, device=logits.device)
         tokens = sample_tokens(logits[rows_t], [self._tok_gens[i] for i in rows], g.sampling)
         self._prev[torch.as_tensor(rows)] = tokens
-        for n, i in enumerate(rows):
-            self._codes[i] = (self._codes[i] + [int(tokens[n])])[-self._context :]
 
-        # Decode the newest token of each character from its recent tokens (grouped by length).
-        body = np.zeros((len(rows), rate, FEATURE_DIM), np.float32)
-        lengths = np.array([len(self._codes[i]) for i in rows])
-        for length in np.unique(lengths):
-            sel = np.nonzero(lengths == length)[0]
-            codes = torch.tensor([self._codes[rows[s]] for s in sel], device=g.device)
-            body[sel] = g.decode_latest(codes)
+        # Decode the newest token of each character (the decoder keeps each one's history).
+        body = g.decode_next(self._decoder, tokens, rows)
 
         for n, i in enumerate(rows):
             f = int(first[n])

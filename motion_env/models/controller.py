@@ -21,6 +21,7 @@ Waypoints follow :mod:`motion_env.motion.trajectory`: world ``x, z`` and a frame
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -224,16 +225,34 @@ class PathController(nn.Module):
     ) -> ControllerState:
         """Replace the route ahead of one character (`index`) or of all (None); times are episode frames."""
         b = state.pos.shape[0]
-        targets = range(b) if index is None else [int(index)]
-        old = [state.waypoints[i, : int(state.count[i])].cpu().numpy() for i in range(b)]
-        rows: list[np.ndarray | None] = [o if len(o) else None for o in old]
-        for i in targets:
+        targets = list(range(b)) if index is None else [int(index)]
+        return self.set_routes(state, targets, [waypoints] * len(targets))
+
+    def set_routes(
+        self, state: ControllerState, rows: Sequence[int], routes: Sequence[np.ndarray | list | None]
+    ) -> ControllerState:
+        """Replace the routes of several characters at once: ``routes[n]`` for character ``rows[n]``
+        (None: no route). The others keep theirs; the tensor of waypoints only ever grows, its
+        padding repeats each route's last waypoint as :func:`pack_waypoints` does."""
+        b = state.pos.shape[0]
+        rows = [int(i) for i in rows]
+        for i in rows:
             if not 0 <= i < b:
                 raise IndexError(f"character index {i} out of range for a batch of {b}")
-            rows[i] = None if waypoints is None else validate_waypoints(waypoints)
-        wp, count = pack_waypoints(rows, b, self.device)
+        new = [None if r is None else validate_waypoints(r) for r in routes]
+        width = max([state.waypoints.shape[1]] + [len(r) for r in new if r is not None])
+        wp = state.waypoints
+        if width > wp.shape[1]:
+            wp = torch.cat([wp, wp[:, -1:].expand(-1, width - wp.shape[1], -1)], dim=1)
+        wp, count = wp.clone(), state.count.clone()
+        for i, r in zip(rows, new):
+            if r is None:
+                wp[i], count[i] = 0.0, 0
+            else:
+                route = torch.as_tensor(r, dtype=wp.dtype, device=wp.device)
+                wp[i, : len(r)], wp[i, len(r) :], count[i] = route, route[-1], len(r)
         queue = state.queue.clone()
-        queue[list(targets)] = 0
+        queue[rows] = 0
         return self._advance_queue(replace(state, waypoints=wp, count=count, queue=queue))
 
     def reset_character(
