@@ -94,14 +94,17 @@ def test_bench_runs_and_writes_json(tmp_path, capsys) -> None:
     results = json.loads(out.read_text())
     env = results["env_step_ms"]
     assert env["steps"] == 8 and env["p99"] >= env["median"] > 0
-    assert [r["num_envs"] for r in results["vector_env"]] == [1, 3]
+    assert results["env_step_ms_learner"]["agent"] == "learner" and results["env_step_ms_learner"]["steps"] == 8
+    assert [(r["agent"], r["num_envs"]) for r in results["vector_env"]] == [
+        ("route", 1), ("route", 3), ("learner", 1), ("learner", 3)
+    ]  # fmt: skip
     assert all(r["frames_per_s"] > 0 for r in results["vector_env"])
     assert results["untrained"] is True
     assert results["clip_latency_ms"]["runs"] == 2 and results["clip_latency_ms"]["median"] > 0
     assert [s["batch"] for s in results["stream"]] == [1, 3]
     assert all(s["frames_per_s"] > 0 for s in results["stream"])
     printed = capsys.readouterr().out
-    assert "clip latency" in printed and "vector env throughput, N=3" in printed
+    assert "clip latency" in printed and "vector env, N=3, new targets" in printed
 
 
 def _tiny_dataset(root: Path, clips: int = 6, frames: int = 61) -> Path:

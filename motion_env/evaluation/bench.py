@@ -9,10 +9,12 @@ What is measured (the definitions of ``docs/metrics.md``):
   with B = 1, 16, 64 characters (each on its own route), after the first step (which rolls the
   controller's look-ahead);
 - environment step: wall time of ``env.step`` of ``motion_env/Waypoints-v0`` (one frame per step),
-  median and 99th percentile over ``env_steps`` steps, the agent issuing the route target;
-- vector-env throughput: frames per second of the natively batched vector env
-  (``vectorization_mode="vector_entry_point"``) with N = 1, 16, 64 characters following random
-  routes, over ``vector_steps`` steps after a warm-up.
+  median and 99th percentile over ``env_steps`` steps, in two cases: the agent issuing the route
+  target (a character following its route), and a learner's case, a new random target (normalised
+  action, no follow switch) every step;
+- vector-env throughput: env steps per second of the natively batched vector env
+  (``vectorization_mode="vector_entry_point"``, one frame per step) with N = 1, 16, 64 characters,
+  over ``vector_steps`` steps after a warm-up, in the same two cases.
 
 This is the project's one bench; ``motion-env bench`` runs it and prints a table.
 """
@@ -91,18 +93,34 @@ def time_stream(generator: Any, batch: int, frames: int = 100) -> dict[str, floa
     }
 
 
-def time_env(generator: Any, steps: int = 1000) -> dict[str, float]:
-    """Per-step latency (ms) of motion_env/Waypoints-v0 over `steps` steps: median, p99 (resets excluded)."""
+# The two ways an agent drives the env in the bench: following its route (world points, the
+# route target), or learning (a new random normalised target every step, no follow switch).
+AGENTS = {
+    "route": {"action_mode": "absolute", "frames_per_step": 1},
+    "learner": {"action_mode": "normalized", "follow_action": False, "frames_per_step": 1},
+}
+
+
+def _agent_action(agent: str, info: dict, rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
+    if agent == "route":
+        return np.asarray(info["route_target"], np.float32)
+    return rng.uniform(-1.0, 1.0, shape).astype(np.float32)
+
+
+def time_env(generator: Any, steps: int = 1000, agent: str = "route") -> dict[str, float]:
+    """Per-step latency (ms) of motion_env/Waypoints-v0 over `steps` steps: median, p99 (resets
+    excluded); `agent` is "route" or "learner" (see :data:`AGENTS`)."""
     import gymnasium as gym
 
     import motion_env  # noqa: F401  (registers the environments)
 
-    env = gym.make("motion_env/Waypoints-v0", generator=generator)
+    env = gym.make("motion_env/Waypoints-v0", generator=generator, **AGENTS[agent])
     options = {"text": BENCH_TEXT, "waypoints": [[0.0, 3.0], [3.0, 6.0], [6.0, 6.0], [6.0, 0.0]]}
     _, info = env.reset(seed=0, options=options)
+    rng = np.random.default_rng(0)
     times, resets = [], 0
     while len(times) < steps:
-        action = np.asarray(info.get("route_target", options["waypoints"][-1]), np.float32)
+        action = _agent_action(agent, info, rng, env.action_space.shape)
         t0 = time.perf_counter()
         _, _, terminated, truncated, info = env.step(action)
         times.append((time.perf_counter() - t0) * 1000.0)
@@ -110,13 +128,16 @@ def time_env(generator: Any, steps: int = 1000) -> dict[str, float]:
             resets += 1
             _, info = env.reset(options=options)
     env.close()
-    return {**_percentiles(times, (90, 99)), "steps": steps, "episodes_reset": resets}
+    result = {**_percentiles(times, (90, 99)), "steps": steps, "episodes_reset": resets, "agent": agent}
+    result["steps_per_s"] = 1000.0 / result["mean"]
+    return result
 
 
 def vector_throughput(
-    generator: Any, num_envs: int, steps: int = 200, warmup: int = 20, seed: int = 0
+    generator: Any, num_envs: int, steps: int = 200, warmup: int = 20, seed: int = 0, agent: str = "route"
 ) -> dict:
-    """Frames per second of the batched vector env with `num_envs` characters (one frame per step)."""
+    """Env steps (= frames) per second of the batched vector env with `num_envs` characters, one
+    frame per step; `agent` is "route" or "learner" (see :data:`AGENTS`)."""
     import gymnasium as gym
 
     import motion_env  # noqa: F401  (registers the environments)
@@ -128,17 +149,21 @@ def vector_throughput(
         generator=generator,
         terminate_on_arrival=False,
         max_episode_steps=steps + warmup + 1,
+        **AGENTS[agent],
     )
     _, infos = envs.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    shape = envs.action_space.shape
     for _ in range(warmup):
-        _, _, _, _, infos = envs.step(infos["route_target"])
+        _, _, _, _, infos = envs.step(_agent_action(agent, infos, rng, shape))
     start = time.perf_counter()
     for _ in range(steps):
-        _, _, _, _, infos = envs.step(infos["route_target"])
+        _, _, _, _, infos = envs.step(_agent_action(agent, infos, rng, shape))
     elapsed = time.perf_counter() - start
     envs.close()
     return {
         "num_envs": num_envs,
+        "agent": agent,
         "steps": steps,
         "ms_per_step": 1000.0 * elapsed / steps,
         "frames_per_s": num_envs * steps / elapsed,
@@ -191,12 +216,12 @@ def run_bench(
         "control_delay_frames": gen.rate,
     }
     if env_steps > 0:
-        try:
-            results["env_step_ms"] = time_env(gen, env_steps)
-        except ImportError as exc:  # the environment package is optional for the generator
-            results["env_step_ms"] = {"skipped": str(exc)}
+        results["env_step_ms"] = time_env(gen, env_steps)
+        results["env_step_ms_learner"] = time_env(gen, env_steps, agent="learner")
     if vector_steps > 0:
-        results["vector_env"] = [vector_throughput(gen, n, steps=vector_steps) for n in num_envs]
+        results["vector_env"] = [
+            vector_throughput(gen, n, steps=vector_steps, agent=agent) for agent in AGENTS for n in num_envs
+        ]
     return results
 
 
@@ -225,14 +250,18 @@ def format_results(results: dict[str, Any]) -> str:
             _row(f"stream step, B={b} (median, p99)", s["step_ms_median"], s["step_ms_p99"], "ms", 2)
         )
         lines.append(_row(f"stream throughput, B={b}", s["frames_per_s"], None, "frames/s", 0))
-    env = results.get("env_step_ms")
-    if env and "median" in env:
-        lines.append(_row(f"env step ({env['steps']} steps, p99)", env["median"], env["p99"], "ms", 2))
-    elif env:
-        lines.append(f"env step: skipped ({env['skipped']})")
+    for key, label in (
+        ("env_step_ms", "following the route"),
+        ("env_step_ms_learner", "new target each step"),
+    ):
+        env = results.get(key)
+        if env:
+            lines.append(_row(f"env step, {label} (p99)", env["median"], env["p99"], "ms", 2))
+            lines.append(_row(f"env steps/s, {label}", env.get("steps_per_s", 0.0), None, "steps/s", 0))
     for row in results.get("vector_env", []):
-        n, fps = row["num_envs"], row["frames_per_s"]
-        lines.append(_row(f"vector env throughput, N={n}", fps, None, "frames/s", 0))
+        n, fps, agent = row["num_envs"], row["frames_per_s"], row.get("agent", "route")
+        label = "following routes" if agent == "route" else "new targets"
+        lines.append(_row(f"vector env, N={n}, {label}", fps, None, "steps/s", 0))
     lines.append(
         f"streaming: the controller runs {results['stream_lookahead_frames']} frames ahead (paid on the "
         f"first step); a new caption/route acts within {results['control_delay_frames']} frames"
