@@ -31,10 +31,11 @@ class GoalReachEnv(WaypointsEnv):
     hindsight (stable-baselines3's ``HerReplayBuffer``).
 
     ## Action Space
-    As Waypoints-v0: ``Box(-arena_size, arena_size, (2,))`` world (x, z) target the character walks
-    to (``action_mode="relative"``: (dx, dz) in its heading frame); issuing the goal itself walks
-    straight to it. NaN/inf raise ``ValueError`` (or ``invalid_action="hold"``); finite values
-    outside the Box are clipped.
+    As Waypoints-v0: by default ``Box(-1, 1, (3,))``, a point up to ``reach`` metres around the
+    character in its heading frame, and a "follow" switch that walks straight to the goal
+    (``follow_action=False`` leaves only the point; ``action_mode="absolute"`` or ``"relative"``:
+    world or heading-frame metres). NaN/inf raise ``ValueError`` (or ``invalid_action="hold"``);
+    finite values outside the Box are clipped.
 
     ## Observation Space
     ``Dict`` of float32 Boxes:
@@ -56,7 +57,7 @@ class GoalReachEnv(WaypointsEnv):
 
     ## Episode End
     Terminated when the pelvis is within ``arrive_radius`` of the goal (``terminate_on_arrival``);
-    truncated by the registration's ``TimeLimit`` (200 steps).
+    truncated by the registration's ``TimeLimit`` (100 steps of four frames: 20 s).
 
     ## Arguments
     Those of Waypoints-v0, plus ``reward_type`` ("sparse" or "dense").

@@ -42,7 +42,7 @@ class WaypointsVectorEnv(VectorEnv):
     Arguments are those of :class:`motion_env.envs.WaypointsEnv` (its behaviour settings passed
     through to :class:`~motion_env.envs.core.EnvConfig`) plus ``num_envs`` and
     ``max_episode_steps`` (truncation is done here, since no ``TimeLimit`` wraps a vector env;
-    ``gym.make_vec`` passes the registration's 1000). ``render_mode`` must be None.
+    ``gym.make_vec`` passes the registration's 150). ``render_mode`` must be None.
 
     Autoreset (``autoreset_mode``, Gymnasium's two modes):
 

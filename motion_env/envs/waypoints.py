@@ -111,35 +111,47 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     never passed: reaching it is the end of the route.
 
     ## Action Space
-    ``Box(-arena_size, arena_size, (2,), float32)``: the point (x, z) in world metres that the
-    character walks to next, which replaces its current target. With ``action_mode="relative"`` the
-    action is (dx, dz) in the character's heading frame (x lateral, + = its left; z forward) from the
-    pelvis, in ``Box(-3 arena_size, 3 arena_size, (2,))``. What an action does to the route:
+    By default (``action_mode="normalized"``, the setting for learning) ``Box(-1, 1, (3,), float32)``:
+    (lateral, forward, follow). The first two times ``reach`` metres (3 m) are the point, in the
+    character's heading frame from its pelvis (lateral + = its left), that it walks to next; a
+    positive ``follow`` instead means "follow the route" (it commands the route target, below), so a
+    learned policy can choose the exact route. ``follow_action=False`` drops the switch: (2,).
+    ``action_mode="absolute"``: the point (x, z) in world metres, ``Box(-arena_size, arena_size,
+    (2,))``; ``"relative"``: (dx, dz) metres in the heading frame, ``Box(-3 arena_size, 3 arena_size,
+    (2,))``. What a commanded point does to the route:
 
     - a point within ``snap_radius`` (5 cm) of a route waypoint R[j] with j >= k means "follow the
       route from R[j]": the character walks the rest of the route, R[j:], with its timing; k jumps to
       j (skipped waypoints earn no bonus). **To keep following the route, issue the route target**:
-      ``info["route_target"]`` (absolute mode) or ``obs["target"]`` (relative mode). A fresh
-      episode starts out following the route from R[0]; re-issuing the current command changes
-      nothing.
+      ``follow > 0`` (normalized mode), ``info["route_target"]`` (absolute) or ``obs["target"]``
+      (relative). A fresh episode starts out following the route from R[0]; re-issuing the current
+      command changes nothing.
     - any other point is a detour: the character walks to that point and stays there. The route is
       kept (its waypoints are still passed if the character happens to come near them) and is
       resumed by issuing one of its waypoints again.
     - bad actions: finite values outside the Box are clipped into it (``info["action_clipped"]``);
       NaN or infinite values raise a ``ValueError`` before anything changes, so the episode can
       continue with the next finite action (``invalid_action="hold"`` instead keeps the previous
-      target and sets ``info["action_invalid"]``); a wrong shape always raises ``ValueError``.
+      target and sets ``info["action_invalid"]``); a wrong shape or a dtype that is not real
+      numbers always raises.
 
     ## Observation Space
-    A ``Dict`` of float32 Boxes (``FlattenObservation`` turns it into 75 numbers), all of the last
-    frame emitted, with heading θ from the generator's root (θ = 0 faces +Z; facing (sin θ, cos θ)):
+    A ``Dict`` of float32 Boxes with finite bounds (``FlattenObservation`` turns it into 84 + D
+    numbers, D = 64 for the shipped model), all of the last frame emitted, with heading θ from the
+    generator's root (θ = 0 faces +Z; facing (sin θ, cos θ)):
 
     - ``"root"`` (4,): pelvis world x, z, cos θ, sin θ
     - ``"target"`` (2,): the route target relative to the pelvis, heading frame (lateral, forward)
+    - ``"route_ahead"`` (6,): the next three waypoints after it, the same way (the last waypoint
+      repeated past the end of the route)
+    - ``"route_state"`` (3,): following the route (1) or on a detour (0); the target is the last
+      waypoint (1/0); waypoints left after the target / 3 (at most 1)
     - ``"velocity"`` (3,): pelvis velocity in the heading frame (m/s, lateral and forward) and
       the turn rate dθ/dt (rad/s)
     - ``"pose"`` (66,): the 22 joints (HumanML3D order) in the heading frame, flattened: x lateral and
       z forward relative to the pelvis, y the height above the floor
+    - ``"caption"`` (D,): the caption as the path controller reads it (its projection of the
+      sentence embedding): what sets walking versus jogging pace
 
     ## Rewards
     Summed over the frames of a step, each term in ``info`` as ``reward_*``:
@@ -147,7 +159,10 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     - ``reward_progress``: ``progress_weight`` x the metres the pelvis got closer to the route target;
     - ``reward_arrival``: ``arrival_bonus`` for every route waypoint passed by arrival (the last one
       included, once);
-    - ``reward_collision``: ``-collision_penalty`` per frame with the pelvis inside an obstacle.
+    - ``reward_collision``: ``-collision_penalty`` per frame with the pelvis inside an obstacle;
+    - ``reward_time``: ``-time_penalty`` per second (0.1), so circling a waypoint costs.
+
+    After the episode terminated, further steps (without ``reset``) warn and pay nothing.
 
     ## Starting State
     The character starts at ``options["start"]`` (x, z, heading), else at the origin facing +Z (or,
@@ -159,17 +174,20 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     ## Episode End
     Terminated when the pelvis is within ``arrive_radius`` of the last waypoint after the others
     were passed or skipped (``terminate_on_arrival=False`` keeps the episode running). Truncated by
-    the ``TimeLimit`` of the registration (1000 steps).
+    the ``TimeLimit`` of the registration (150 steps of four frames: 30 s).
 
     ## Arguments
     ```python
     gym.make("motion_env/Waypoints-v0", generator=None, model_path=None, text_pool=None,
-             action_mode="absolute", frames_per_step=1, arrive_radius=0.5,
+             action_mode="normalized", frames_per_step=4, arrive_radius=0.5,
              terminate_on_arrival=True, render_mode=None, obstacles=None, arena_size=10.0,
              snap_radius=0.05, progress_weight=1.0, arrival_bonus=1.0, collision_penalty=1.0,
-             invalid_action="raise", random_start=False, device="cpu", render_size=(480, 360),
-             render_style="stick", robot=None)
+             time_penalty=0.1, reach=3.0, follow_action=True, invalid_action="raise",
+             random_start=False, device="cpu", render_size=(480, 360), render_style="stick",
+             robot=None)
     ```
+    - ``frames_per_step``: frames (1/20 s each) per step; the default 4 is one generator token, so
+      a new target every step costs no more than one every token.
     - ``generator``: a :class:`motion_env.MotionGenerator` (None loads the shipped model, or ``model_path``).
     - ``text_pool``: captions a reset without ``options["text"]`` draws from.
     - ``obstacles``: circles ``(x, z, radius)`` and/or polygons ``[(x, z), ...]`` in metres
@@ -182,9 +200,10 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
       ``MUJOCO_GL=egl`` or ``osmesa``); ``render_size`` = (width, height) in pixels.
 
     ``info`` holds ``joints`` (22, 3) world positions of the last frame emitted; ``step_joints``
-    (F, 22, 3) all the frames the step emitted (F = ``frames_per_step``; 1 after reset); ``text``;
-    ``frame`` (frames emitted so far); ``route`` (K, 2) x, z (with times: :attr:`route`);
-    ``route_index`` k; ``route_target`` and ``command`` (world x, z); ``following_route``;
+    (F, 22, 3) all the frames the step emitted (F = ``frames_per_step``; after a reset the first
+    frame F times, so every entry keeps one shape and vector envs can stack it); ``text``;
+    ``frame`` (frames emitted so far); ``route_length`` K (the route itself, (K, 3) with times,
+    is :attr:`route`); ``route_index`` k; ``route_target`` and ``command`` (world x, z); ``following_route``;
     ``distance`` (pelvis to route target, m); ``is_success`` (the last waypoint reached); the
     reward terms and the action flags. With ``robot="unitree_g1"`` (or ``"booster_t1"``, or a
     humanoid MJCF path; default None) it also holds ``robot_qpos`` (nq,) float32: the last frame

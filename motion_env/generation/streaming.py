@@ -19,6 +19,9 @@ frames) at a time:
   (:class:`~motion_env.generation.feet.FootPinner`) is causal, frame by frame, as for whole clips.
 - Snapping is causal too: the residual to each waypoint inside the look-ahead is spread linearly
   from the last decoded frame to the waypoint's frame.
+- Joint targets and height limits (:meth:`MotionStream.set_joint_targets`,
+  :meth:`MotionStream.set_objectives`) are met by the causal, closed-form stages of
+  :mod:`motion_env.generation.stream_control` as each token is decoded.
 """
 
 from __future__ import annotations
@@ -441,7 +444,7 @@ class MotionStream:
             self._cache.pos[idle_t] -= 1
         rows_t = torch.as_tensor(rows, device=logits.device)
         tokens = sample_tokens(logits[rows_t], [self._tok_gens[i] for i in rows], g.sampling)
-        self._prev[torch.as_tensor(rows)] = tokens
+        self._prev[torch.as_tensor(rows)] = tokens.to(self._prev.device)
 
         # Decode the newest token of each character (the decoder keeps each one's history).
         body = g.decode_next(self._decoder, tokens, rows)

@@ -168,3 +168,18 @@ def test_make_sb3_env_rejects_bad_arguments_and_names_a_missing_sb3(gen, monkeyp
     monkeypatch.setitem(sys.modules, "stable_baselines3.common.vec_env", None)  # "not installed"
     with pytest.raises(ImportError, match=r'pip install "motion-env\[rl\]"'):
         motion_env.make_sb3_env("motion_env/Waypoints-v0", num_envs=2, generator=gen)
+
+
+def test_gymnasiums_record_video_works_with_the_rl_extra(gen, tmp_path):
+    pytest.importorskip("moviepy", reason="the optional 'rl' extra (moviepy) is not installed")
+    env = gym.make("motion_env/Waypoints-v0", generator=gen, render_mode="rgb_array", render_size=(96, 64),
+                   max_episode_steps=3)  # fmt: skip
+    env = gym.wrappers.RecordVideo(env, str(tmp_path), episode_trigger=lambda e: True, disable_logger=True)
+    env.reset(seed=0)
+    done = False
+    while not done:
+        *_, terminated, truncated, _ = env.step(env.action_space.sample())
+        done = terminated or truncated
+    env.close()
+    videos = list(tmp_path.glob("*.mp4"))
+    assert len(videos) == 1 and videos[0].stat().st_size > 0
