@@ -3,9 +3,9 @@
 Each subcommand has an ``add_<name>`` function that declares its arguments and a ``run_<name>``
 function that calls the library: :mod:`.generate` (``generate``, ``bench``), :mod:`.files`
 (``show``, ``replay``), :mod:`.offline` (``data build``, ``train``), :mod:`.export` (``export``),
-:mod:`.retarget` (``retarget``); :mod:`.common` holds what they share. The heavy modules are
-imported only by the command that needs them, after its cheap checks, so `motion-env --help` and
-a typo are answered at once.
+:mod:`.retarget` (``retarget``), :mod:`.studio` (``studio``); :mod:`.common` holds what they
+share. The heavy modules are imported only by the command that needs them, after its cheap checks,
+so `motion-env --help` and a typo are answered at once.
 
 The rules every command follows:
 
@@ -32,6 +32,7 @@ from motion_env.cli.files import add_replay, add_show
 from motion_env.cli.generate import add_bench, add_generate
 from motion_env.cli.offline import add_data, add_train
 from motion_env.cli.retarget import add_retarget
+from motion_env.cli.studio import add_studio
 
 __all__ = ["build_parser", "main"]
 
@@ -49,7 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"motion-env {_version()}")
     sub = parser.add_subparsers(dest="command", required=True)
     commands = (add_show, add_data, add_train, add_generate, add_bench, add_replay, add_export, add_retarget)
-    for add in commands:
+    for add in (*commands, add_studio):
         add(sub)
     return parser
 

@@ -1,0 +1,151 @@
+"""`motion-env studio`: a local web page where you type a caption, click waypoints on the floor and
+watch the character (or a small crowd) stream in 3-D, 20 frames a second. Needs the optional
+viser package (pip install "motion-env[studio]"). Stop it with Ctrl-C.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import os
+import signal
+import socket
+import sys
+import threading
+from pathlib import Path
+
+from motion_env.cli.common import CommandError, add_threads, check_device, paused_gc, set_threads
+
+__all__ = ["add_studio", "run_studio"]
+
+DEFAULT_CAPTION = "a person walks forward"
+
+
+def add_studio(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "studio",
+        help="a local web page: caption, waypoints, obstacles; the character streams in 3-D",
+        description=__doc__,
+    )
+    p.add_argument(
+        "--port", type=int, default=8080, help="TCP port of the page (default 8080; 0: any free one)"
+    )
+    p.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="interface to listen on (default 127.0.0.1: this machine only; 0.0.0.0 opens it to the network)",
+    )
+    p.add_argument("--no-browser", action="store_true", help="print the URL but do not open a browser")
+    p.add_argument(
+        "--text",
+        action="append",
+        default=None,
+        help=f'caption of a character (repeat for several; default "{DEFAULT_CAPTION}")',
+    )
+    p.add_argument(
+        "--characters",
+        type=int,
+        default=None,
+        help="how many characters (a crowd, captions taken from --text in turn; default: one per --text)",
+    )
+    p.add_argument("--seed", type=int, default=0, help="random seed of the stream (the page can change it)")
+    p.add_argument("--model", default=None, help="weights directory (default: the shipped model)")
+    p.add_argument("--random-model", action="store_true", help="tiny UNTRAINED random weights (for testing)")
+    p.add_argument("--device", default="cpu", help="torch device (default cpu)")
+    add_threads(p)
+    p.set_defaults(run=run_studio)
+
+
+def _check_port(host: str, port: int) -> None:
+    """The port is a number a server can listen on here, and nothing listens on it yet."""
+    if not 0 <= port <= 65535:
+        raise CommandError(f"--port must be from 0 to 65535, got {port}")
+    try:
+        family = socket.AF_INET6 if ":" in host else socket.AF_INET
+        with socket.socket(family, socket.SOCK_STREAM) as probe:
+            probe.bind((host, port))
+    except socket.gaierror:
+        raise CommandError(f"--host {host!r} is not an address of this machine") from None
+    except OSError as exc:
+        if port and exc.errno in (98, 48, 10048):  # EADDRINUSE on Linux, macOS, Windows
+            raise CommandError(
+                f"--port {port} is in use (another studio?): pick another with --port N, or --port 0 "
+                "for any free one"
+            ) from None
+        raise CommandError(f"--host {host} --port {port}: cannot listen there ({exc.strerror})") from None
+
+
+def _captions(args: argparse.Namespace) -> list[str]:
+    from motion_env.generation.request import check_text
+    from motion_env.studio.session import MAX_CHARACTERS
+
+    texts = [check_text(t, "--text") for t in (args.text or [DEFAULT_CAPTION])]
+    count = len(texts) if args.characters is None else args.characters
+    if not 1 <= count <= MAX_CHARACTERS:
+        raise CommandError(f"--characters must be from 1 to {MAX_CHARACTERS}, got {count}")
+    return [texts[i % len(texts)] for i in range(count)]
+
+
+def _can_open_a_browser() -> bool:
+    """A graphical browser can open here: without a display, Python's webbrowser falls back to a
+    text browser that would take over this terminal."""
+    return sys.platform in ("darwin", "win32") or bool(
+        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+    )
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
+def run_studio(args: argparse.Namespace) -> int:
+    if importlib.util.find_spec("viser") is None:
+        raise CommandError(
+            'the studio needs the viser package: pip install -c constraints.txt "motion-env[studio]"'
+        )
+    if args.random_model and args.model is not None:
+        raise CommandError("give either --model or --random-model, not both")
+    if args.model is not None and not Path(args.model).is_dir():
+        raise FileNotFoundError(f"--model {args.model}: no generator weights directory there")
+    captions = _captions(args)
+    _check_port(args.host, args.port)
+    with paused_gc():
+        check_device(args.device)  # imports torch
+        set_threads(args.threads)
+        from motion_env.generation.generator import MotionGenerator
+        from motion_env.studio.server import Studio
+
+        if args.random_model:
+            gen = MotionGenerator.random(seed=args.seed, device=args.device)
+        else:
+            gen = MotionGenerator.from_pretrained(args.model, device=args.device)
+        gen.encode_text(sorted(set(captions)))  # the text encoder loads here (unless cached)
+        # New captions typed in the page are encoded while it plays: load the encoder now, so that
+        # the first one is not a pause of seconds.
+        _ = gen.pipeline.text_encoder
+    # `kill` ends the studio as Ctrl-C does: the page closes, the port is freed, exit code 130.
+    # (Handlers can only be set from the main thread; tests run commands from others.)
+    on_main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _interrupt) if on_main else None
+    studio = Studio(gen, captions, seed=args.seed, host=args.host, port=args.port)
+    try:
+        url = studio.start()
+        opened = False
+        if not args.no_browser and _can_open_a_browser():
+            import webbrowser
+
+            opened = webbrowser.open(url)
+        how = "opened in your browser" if opened else "open it in a browser"
+        print(f"motion-env studio: {url} ({how}; Ctrl-C to stop)", flush=True)
+        studio.serve_forever()
+    finally:
+        studio.stop()
+        if studio.frames_played:
+            print(
+                f"motion-env studio: played {studio.frames_played} frames in {studio.play_seconds:.1f} s "
+                f"({studio.frames_played / max(studio.play_seconds, 1e-9):.1f} fps)",
+                flush=True,
+            )
+        if on_main:
+            signal.signal(signal.SIGTERM, previous)
+    return 0

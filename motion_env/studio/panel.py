@@ -1,0 +1,249 @@
+"""The studio's control panel (viser GUI) and what each control does.
+
+The controls are shared by every open tab: a caption applied in one tab shows in the others.
+Each callback runs on one of viser's worker threads; it hands the change to the
+:class:`~motion_env.studio.session.StudioSession` (which orders it between two frames) or to the
+:class:`~motion_env.studio.server.Studio` (playback), and reports a mistake to the tab that made it
+as a notification, never as a traceback.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, Protocol
+
+import viser
+
+from motion_env.motion.skeleton import FPS
+from motion_env.studio.session import Stats, StudioSession
+
+__all__ = ["CLICK_MODES", "ControlPanel", "notify"]
+
+CLICK_MODES = ("waypoint", "obstacle", "goal (A* agent)")
+JUDGE_SECONDS = 5.0
+
+
+def notify(client: viser.ClientHandle | None, title: str, body: str, error: bool = False) -> None:
+    """A notification in one tab (the one that asked), closing by itself after a while."""
+    if client is None:
+        return
+    client.add_notification(title, body, auto_close_seconds=8.0, color="red" if error else None)
+
+
+def reported(title: str) -> Callable:
+    """Decorate a GUI callback: a ValueError / IndexError / OSError becomes a notification."""
+
+    def wrap(func: Callable[[viser.GuiEvent], None]) -> Callable[[viser.GuiEvent], None]:
+        def run(event: viser.GuiEvent) -> None:
+            try:
+                func(event)
+            except (ValueError, IndexError, OSError, RuntimeError) as exc:
+                notify(event.client, title, str(exc), error=True)
+
+        return run
+
+    return wrap
+
+
+class Playback(Protocol):
+    """What the panel drives: :class:`~motion_env.studio.server.Studio` (a protocol here, so the
+    panel does not import the server that builds it)."""
+
+    server: Any
+    session: StudioSession
+    playing: bool
+    speed: float
+    recording_from: int | None
+
+    def set_playing(self, playing: bool) -> None: ...
+    def step_once(self) -> None: ...
+    def restart_clock(self) -> None: ...
+    def judge(self, index: int, seconds: float) -> str: ...
+    def download(self, client: Any, index: int, kind: str) -> None: ...
+    def start_recording(self) -> None: ...
+    def stop_recording(self, client: Any, index: int) -> None: ...
+
+
+class ControlPanel:
+    """Builds the GUI of `studio` and keeps its numbers up to date."""
+
+    def __init__(self, studio: Playback) -> None:
+        self.studio = studio
+        gui = studio.server.gui
+        session = studio.session
+        gui.configure_theme(control_layout="floating", control_width="large", show_logo=False)
+
+        with gui.add_folder("Character"):
+            self.character = gui.add_dropdown(
+                "Character",
+                [str(i + 1) for i in range(session.num_characters)],
+                initial_value="1",
+                visible=session.num_characters > 1,
+                hint="which character the controls below act on",
+            )
+            self.caption = gui.add_text(
+                "Caption", session.snapshot().captions[0], hint="what the character does"
+            )
+            self.apply_caption = gui.add_button(
+                "Apply caption", hint="from the next token on (0.2 s), no pop"
+            )
+
+        with gui.add_folder("Route"):
+            self.click_mode = gui.add_dropdown(
+                "Click places",
+                CLICK_MODES,
+                initial_value=CLICK_MODES[0],
+                hint="what a click on the floor places; drag a waypoint to move it; shift + drag on the "
+                "floor draws a path",
+            )
+            self.waypoint_seconds = gui.add_number(
+                "Reach in (s)",
+                0.0,
+                min=0.0,
+                max=600.0,
+                step=0.5,
+                hint="0: untimed (at the caption's pace); else reached this many seconds after the click",
+            )
+            self.obstacle_radius = gui.add_slider("Obstacle radius (m)", 0.2, 3.0, 0.1, 0.6)
+            self.clear_route = gui.add_button("Clear route", hint="no waypoints: the caption alone steers")
+            self.clear_goal = gui.add_button("Stop the A* agent", hint="its last plan stays as the route")
+            self.clear_obstacles = gui.add_button("Clear obstacles")
+
+        with gui.add_folder("Playback"):
+            self.play = gui.add_button("Pause", hint="play / pause")
+            self.step = gui.add_button("Step", hint="one frame (1/20 s), then pause")
+            self.seed = gui.add_number("Seed", int(session.seed), min=0, max=2**31 - 1, step=1)
+            self.reset = gui.add_button(
+                "Reset", hint="a new episode with this seed: same captions, route, obstacles"
+            )
+            self.speed = gui.add_slider(
+                "Speed", 0.25, 2.0, 0.25, 1.0, hint="playback speed (1 = real time, 20 fps)"
+            )
+            self.follow = gui.add_checkbox(
+                "Follow with the camera", True, hint="the view moves along with the character"
+            )
+
+        with gui.add_folder("Numbers"):
+            self.numbers = gui.add_markdown("")
+            self.judge = gui.add_button(
+                f"Judge the last {JUDGE_SECONDS:g} s",
+                hint="MuJoCo humanoid replay: is it physically plausible?",
+            )
+            self.verdict = gui.add_markdown("")
+
+        with gui.add_folder("Keep", expand_by_default=False):
+            self.save_npz = gui.add_button("Download .npz", hint="the episode so far (Motion.save)")
+            self.save_bvh = gui.add_button(
+                "Download .bvh", hint="the episode so far on the canonical skeleton"
+            )
+            self.save_csv = gui.add_button(
+                "Download robot .csv", hint="retargeted onto the Unitree G1 (50 fps)"
+            )
+            self.record = gui.add_button("Start recording", hint="then stop: an .mp4 of the recorded frames")
+
+        self._wire()
+
+    # ------------------------------------------------------------------ callbacks
+    @property
+    def selected(self) -> int:
+        return int(self.character.value) - 1
+
+    def _wire(self) -> None:
+        studio, session = self.studio, self.studio.session
+
+        @self.character.on_update
+        def _(_: viser.GuiEvent) -> None:
+            self.caption.value = session.snapshot().captions[self.selected]
+
+        @self.apply_caption.on_click
+        @reported("Caption not applied")
+        def _(event: viser.GuiEvent) -> None:
+            text = session.set_caption(self.selected, self.caption.value)
+            notify(event.client, "Caption applied", _short(text, 120))
+
+        @self.clear_route.on_click
+        @reported("Route")
+        def _(_: viser.GuiEvent) -> None:
+            session.clear_route(self.selected)
+
+        @self.clear_goal.on_click
+        @reported("A* agent")
+        def _(_: viser.GuiEvent) -> None:
+            session.clear_goal(self.selected)
+
+        @self.clear_obstacles.on_click
+        @reported("Obstacles")
+        def _(_: viser.GuiEvent) -> None:
+            session.clear_obstacles()
+
+        @self.play.on_click
+        def _(_: viser.GuiEvent) -> None:
+            studio.set_playing(not studio.playing)
+
+        @self.step.on_click
+        def _(_: viser.GuiEvent) -> None:
+            studio.step_once()
+
+        @self.reset.on_click
+        @reported("Reset")
+        def _(_: viser.GuiEvent) -> None:
+            session.reset(int(self.seed.value))
+            studio.restart_clock()
+
+        @self.speed.on_update
+        def _(_: viser.GuiEvent) -> None:
+            studio.speed = float(self.speed.value)
+
+        @self.judge.on_click
+        @reported("Judge")
+        def _(_: viser.GuiEvent) -> None:
+            self.verdict.content = "judging..."
+            self.verdict.content = studio.judge(self.selected, JUDGE_SECONDS)
+
+        @self.save_npz.on_click
+        @reported("Download")
+        def _(event: viser.GuiEvent) -> None:
+            studio.download(event.client, self.selected, "npz")
+
+        @self.save_bvh.on_click
+        @reported("Download")
+        def _(event: viser.GuiEvent) -> None:
+            studio.download(event.client, self.selected, "bvh")
+
+        @self.save_csv.on_click
+        @reported("Robot CSV")
+        def _(event: viser.GuiEvent) -> None:
+            studio.download(event.client, self.selected, "csv")
+
+        @self.record.on_click
+        @reported("Recording")
+        def _(event: viser.GuiEvent) -> None:
+            if studio.recording_from is None:
+                studio.start_recording()
+                self.record.label = "Stop recording"
+            else:
+                self.record.label = "Start recording"
+                studio.stop_recording(event.client, self.selected)
+
+    # ------------------------------------------------------------------ numbers
+    def show_playing(self, playing: bool) -> None:
+        self.play.label = "Pause" if playing else "Play"
+
+    def show_numbers(self, stats: Stats, fps: float, behind: bool) -> None:
+        """The live numbers of the selected character (called by the player thread a few times a second)."""
+        rate = f"{fps:.1f}" + (" (behind: slower than real time)" if behind else "")
+        if stats.to_next_m is None:
+            route = "no route"
+        elif stats.waypoints_left == 0:
+            route = f"last waypoint reached ({stats.to_next_m:.2f} m)"
+        else:
+            route = f"{stats.to_next_m:.2f} m to the next waypoint ({stats.waypoints_left} left)"
+        self.numbers.content = (
+            f"**frame** {stats.frame} ({stats.frame / FPS:.1f} s) · **fps** {rate}  \n"
+            f"**step** {stats.step_ms:.1f} ms (slowest in the last second {stats.step_ms_max:.1f} ms)  \n"
+            f"**speed** {stats.speed_mps:.2f} m/s · {route}"
+        )
+
+
+def _short(text: str, length: int) -> str:
+    return text if len(text) <= length else text[: length - 1] + "…"

@@ -1,0 +1,432 @@
+"""The studio's state and its one frame per tick, without any web page.
+
+A :class:`StudioSession` holds B characters of one generator stream
+(:class:`motion_env.generation.streaming.MotionStream`), their captions, routes, goals, the
+arena's obstacles and what has been generated so far. The page (:mod:`motion_env.studio.server`)
+calls :meth:`StudioSession.tick` from its player thread, once per frame, and the edit methods
+from the threads that serve the browser's events; one lock orders them, so a change lands between
+two frames, which the stream turns into a change without a pop (from its next token on).
+
+Everything a user can get wrong arrives here as a ValueError (or IndexError) whose message the
+page shows as it is; nothing is changed then.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+import warnings
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from motion_env.generation.request import check_feasible, check_text
+from motion_env.motion.skeleton import FPS, NUM_JOINTS
+from motion_env.motion.types import Motion
+from motion_env.studio.agent import GoalAgent
+from motion_env.studio.geometry import ARENA_HALF_SIZE, resample_path
+from motion_env.studio.routes import ARRIVE_RADIUS, Route
+
+__all__ = ["MAX_CHARACTERS", "Snapshot", "Stats", "StudioSession"]
+
+MAX_CHARACTERS = 16  # a small crowd; the batched stream costs grow with it (see the README)
+MAX_HISTORY_FRAMES = 20 * 60 * FPS  # 20 minutes kept per session (about 6 MB per character)
+TRAIL_FRAMES = 60 * FPS  # the trail drawn behind each character: its last minute
+START_SPACING = 1.5  # metres between the characters of a crowd at the start
+MAX_OBSTACLE_RADIUS = 5.0
+PATH_SPACING = 0.5  # metres between the waypoints of a drawn path
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """What the page draws after a tick (arrays are copies; B characters).
+
+    Attributes:
+        frame: frames emitted in this episode.
+        joints: (B, 22, 3) the pose just emitted.
+        trails: B arrays (N, 2) of pelvis (x, z), oldest first.
+        routes: B arrays (K, 3) of waypoints (x, z, frame; NaN untimed).
+        next_waypoint: B indices of the waypoint each character heads for.
+        reached: B flags: the last waypoint has been reached.
+        goals: B goals (x, z) of the A* agent, or None.
+        obstacles: (N, 3) circles x, z, radius.
+        captions: B captions.
+        version: changes whenever routes, goals or obstacles change (the page redraws them then).
+    """
+
+    frame: int
+    joints: np.ndarray
+    trails: list[np.ndarray]
+    routes: list[np.ndarray]
+    next_waypoint: list[int]
+    reached: list[bool]
+    goals: list[np.ndarray | None]
+    obstacles: np.ndarray
+    captions: list[str]
+    version: tuple
+
+
+@dataclass(frozen=True)
+class Stats:
+    """The live numbers of one character (see :meth:`StudioSession.stats`)."""
+
+    frame: int
+    step_ms: float  # the last frame's generator step
+    step_ms_max: float  # the slowest step of the last second (a token is decoded every 4th frame)
+    speed_mps: float  # pelvis speed over the last second, on the floor
+    to_next_m: float | None  # to the waypoint the character heads for (None: no route)
+    waypoints_left: int
+
+
+class _Character:
+    """The per-character state of a session."""
+
+    def __init__(self, caption: str, start: np.ndarray) -> None:
+        self.caption = caption
+        self.start = start  # (3,) x, z, heading
+        self.route = Route()
+        self.agent: GoalAgent | None = None
+        self.captions_log: list[tuple[int, str]] = [(0, caption)]  # (frame, caption) changes
+
+
+def _start_positions(count: int) -> np.ndarray:
+    """(B, 3) starts: a row along x, everyone facing +Z."""
+    starts = np.zeros((count, 3), np.float32)
+    starts[:, 0] = (np.arange(count) - (count - 1) / 2) * START_SPACING
+    return starts
+
+
+def _check_index(index: Any, count: int) -> int:
+    if isinstance(index, bool) or not isinstance(index, int | np.integer) or not 0 <= index < count:
+        raise IndexError(f"there is no character {index!r} (this studio has {count})")
+    return int(index)
+
+
+def _check_xz(xz: Any, what: str = "point") -> np.ndarray:
+    arr = np.asarray(xz, np.float64).reshape(-1)
+    if arr.shape != (2,) or not np.isfinite(arr).all():
+        raise ValueError(f"a {what} must be two finite numbers (x, z), got {xz!r}")
+    if np.abs(arr).max() > ARENA_HALF_SIZE:
+        raise ValueError(
+            f"the {what} ({arr[0]:.1f}, {arr[1]:.1f}) is off the floor: keep within "
+            f"{ARENA_HALF_SIZE:g} m of the centre"
+        )
+    return arr
+
+
+class StudioSession:
+    """B characters streamed one frame per :meth:`tick`, editable from other threads between ticks.
+
+    Args:
+        generator: a :class:`motion_env.MotionGenerator` (its :meth:`stream` and :meth:`encode_text`
+            are all that is used).
+        captions: one caption per character (1 to :data:`MAX_CHARACTERS`).
+        seed: seed of the stream; :meth:`reset` can change it.
+    """
+
+    def __init__(self, generator: Any, captions: Sequence[str], seed: int = 0) -> None:
+        if isinstance(captions, str):
+            captions = [captions]
+        captions = [check_text(c, f"caption of character {i + 1}") for i, c in enumerate(captions)]
+        if not 1 <= len(captions) <= MAX_CHARACTERS:
+            raise ValueError(f"a studio holds 1 to {MAX_CHARACTERS} characters, got {len(captions)}")
+        self._gen = generator
+        self._lock = threading.RLock()
+        starts = _start_positions(len(captions))
+        self._chars = [_Character(c, starts[i]) for i, c in enumerate(captions)]
+        self._obstacles: list[tuple[float, float, float]] = []
+        self._version = 0
+        self._notices: deque[str] = deque(maxlen=20)
+        self.seed = self._check_seed(seed)
+        self._open_stream()
+
+    # ------------------------------------------------------------------ episode
+    @staticmethod
+    def _check_seed(seed: Any) -> int:
+        if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or not 0 <= seed < 2**31:
+            raise ValueError(f"the seed must be a whole number from 0 to {2**31 - 1}, got {seed!r}")
+        return int(seed)
+
+    def _open_stream(self) -> None:
+        """A new stream for everyone from frame 0 (held lock or not yet shared)."""
+        chars = self._chars
+        for c in chars:
+            c.route.restart()
+            c.captions_log = [(0, c.caption)]
+            if c.agent is not None:
+                c.agent = GoalAgent(c.agent.goal, self._obstacles)
+        routes = [c.route.ahead(0) for c in chars]
+        starts = np.stack([c.start for c in chars])
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            self._stream = self._gen.stream(
+                [c.caption for c in chars], waypoints=routes, starts=starts, seed=self.seed, infeasible="warn"
+            )
+        self._note_warnings(caught)
+        self._frame = 0
+        self._joints = np.zeros((len(chars), NUM_JOINTS, 3), np.float32)
+        self._history: deque[np.ndarray] = deque(maxlen=MAX_HISTORY_FRAMES)  # (B, 22, 3) per frame
+        self._pelvis: deque[np.ndarray] = deque(maxlen=TRAIL_FRAMES)  # (B, 2) floor x, z per frame
+        self._step_ms: deque[float] = deque(maxlen=FPS)
+        self._version += 1
+        self._tick_once()  # frame 0: something to draw before the first play
+
+    def reset(self, seed: int | None = None) -> None:
+        """Start a new episode: everyone back at their start, same captions, routes, goals and
+        obstacles; `seed` (default: the current one) seeds the new stream."""
+        with self._lock:
+            if seed is not None:
+                self.seed = self._check_seed(seed)
+            self._open_stream()
+
+    # ------------------------------------------------------------------ the frame
+    def tick(self) -> Snapshot:
+        """Emit the next frame of every character; returns what to draw."""
+        with self._lock:
+            self._tick_once()
+            return self._snapshot()
+
+    def _tick_once(self) -> None:
+        t0 = time.perf_counter()
+        joints = np.asarray(self._stream.step(), np.float32)  # (B, 22, 3)
+        self._step_ms.append(1000.0 * (time.perf_counter() - t0))
+        self._joints = joints
+        self._history.append(joints)
+        self._pelvis.append(joints[:, 0, [0, 2]].astype(np.float64))
+        self._frame = int(self._stream.frame_index[0])
+        frame = self._frame - 1  # the frame just emitted
+        for i, c in enumerate(self._chars):
+            pelvis = joints[i, 0, [0, 2]].astype(np.float64)
+            if c.route.advance(pelvis, frame):
+                self._version += 1
+            # The agent looks again once per token (4 frames): re-planning is what costs.
+            if c.agent is not None and frame % 4 == 0:
+                self._update_agent(i, pelvis)
+
+    def _update_agent(self, i: int, pelvis: np.ndarray) -> None:
+        c = self._chars[i]
+        try:
+            plan = c.agent.update(pelvis)
+        except ValueError as exc:
+            c.agent = None
+            self._version += 1
+            self._notices.append(f"character {i + 1}: the A* agent gave up: {exc}")
+            return
+        if plan is not None:
+            c.route.replace(plan)
+            self._send_route(i)
+
+    def _send_route(self, i: int) -> None:
+        """Give character i's route ahead to the stream (held lock)."""
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            self._stream.set_waypoints(self._chars[i].route.ahead(self._frame), index=i)
+        self._note_warnings(caught)
+        self._version += 1
+
+    def _note_warnings(self, caught: list) -> None:
+        for w in caught:
+            self._notices.append(str(w.message))
+
+    # ------------------------------------------------------------------ edits
+    @property
+    def num_characters(self) -> int:
+        return len(self._chars)
+
+    def set_caption(self, index: int, text: str) -> str:
+        """Give character `index` a new caption (from its next token on); returns it, stripped."""
+        text = check_text(text, "the caption")
+        i = _check_index(index, len(self._chars))
+        # A caption never seen costs the text encoder a few ms (seconds for the first one of the
+        # process): encode it here, outside the lock, so that the frames keep coming meanwhile.
+        self._gen.encode_text([text])
+        with self._lock:
+            self._stream.set_text(text, index=i)
+            c = self._chars[i]
+            c.caption = text
+            c.captions_log.append((self._frame, text))
+        return text
+
+    def add_waypoint(self, index: int, xz: Sequence[float], seconds: float | None = None) -> int:
+        """Append a waypoint to character `index`'s route; returns its number (1-based).
+
+        Args:
+            xz: the point on the floor.
+            seconds: reach it this many seconds from now (None or 0: untimed, at the caption's pace).
+        """
+        i = _check_index(index, len(self._chars))
+        point = _check_xz(xz, "waypoint")
+        if seconds is not None and not (np.isfinite(seconds) and seconds >= 0):
+            raise ValueError(f"a waypoint's time must be a number of seconds >= 0, got {seconds!r}")
+        with self._lock:
+            c = self._chars[i]
+            frame = None if not seconds else self._frame + max(1, round(seconds * FPS))
+            route = c.route.copy()
+            route.add(point, frame)
+            if frame is not None:
+                here = self._joints[i, 0, [0, 2]]
+                try:
+                    check_feasible(route.ahead(self._frame), here, "raise", self._frame)
+                except ValueError as exc:
+                    reason = str(exc).split(". Times are")[0].split("asks for", 1)[-1]
+                    raise ValueError(
+                        f"waypoint {len(route)} in {seconds:g} s is too fast: it asks for{reason}"
+                    ) from None
+            c.agent = None  # the user takes the route over from the A* agent
+            c.route.add(point, frame)
+            self._send_route(i)
+            return len(route)
+
+    def move_waypoint(self, index: int, waypoint: int, xz: Sequence[float]) -> None:
+        """Move waypoint `waypoint` (0-based) of character `index` to `xz`."""
+        i = _check_index(index, len(self._chars))
+        point = _check_xz(xz, "waypoint")
+        with self._lock:
+            c = self._chars[i]
+            c.route.move(int(waypoint), point)
+            c.agent = None
+            self._send_route(i)
+
+    def set_path(self, index: int, points: np.ndarray | Sequence) -> int:
+        """Replace character `index`'s route by a drawn path (N, 2), resampled every 0.5 m;
+        returns the number of waypoints."""
+        i = _check_index(index, len(self._chars))
+        pts = np.asarray(points, np.float64).reshape(-1, 2)
+        for p in pts:
+            _check_xz(p, "path point")
+        route = resample_path(pts, PATH_SPACING)
+        with self._lock:
+            c = self._chars[i]
+            c.route.replace(route)
+            c.agent = None
+            self._send_route(i)
+        return len(route)
+
+    def clear_route(self, index: int) -> None:
+        """No route for character `index`: it follows its caption alone."""
+        i = _check_index(index, len(self._chars))
+        with self._lock:
+            c = self._chars[i]
+            c.route.replace(None)
+            c.agent = None
+            self._send_route(i)
+
+    def set_goal(self, index: int, xz: Sequence[float]) -> None:
+        """Let the A* agent walk character `index` to `xz` around the obstacles (it re-plans as
+        obstacles come and go, and when the character drifts off its plan)."""
+        i = _check_index(index, len(self._chars))
+        goal = _check_xz(xz, "goal")
+        with self._lock:
+            c = self._chars[i]
+            agent = GoalAgent(goal, self._obstacles)
+            plan = agent.update(self._joints[i, 0, [0, 2]].astype(np.float64))  # ValueError: no path
+            c.agent = agent
+            c.route.replace(plan)
+            self._send_route(i)
+
+    def clear_goal(self, index: int) -> None:
+        """Stop the A* agent of character `index` (its last plan stays as the route)."""
+        i = _check_index(index, len(self._chars))
+        with self._lock:
+            self._chars[i].agent = None
+            self._version += 1
+
+    def add_obstacle(self, xz: Sequence[float], radius: float) -> None:
+        """A circle obstacle; the A* agents re-plan around it."""
+        centre = _check_xz(xz, "obstacle")
+        if not (np.isfinite(radius) and 0 < radius <= MAX_OBSTACLE_RADIUS):
+            raise ValueError(
+                f"an obstacle's radius must be in (0, {MAX_OBSTACLE_RADIUS:g}] m, got {radius!r}"
+            )
+        with self._lock:
+            self._obstacles.append((float(centre[0]), float(centre[1]), float(radius)))
+            self._obstacles_changed()
+
+    def clear_obstacles(self) -> None:
+        with self._lock:
+            self._obstacles.clear()
+            self._obstacles_changed()
+
+    def _obstacles_changed(self) -> None:
+        for c in self._chars:
+            if c.agent is not None:
+                c.agent.set_obstacles(self._obstacles)
+        self._version += 1
+
+    # ------------------------------------------------------------------ reading
+    @property
+    def frame(self) -> int:
+        return self._frame
+
+    def snapshot(self) -> Snapshot:
+        with self._lock:
+            return self._snapshot()
+
+    def _snapshot(self) -> Snapshot:
+        pelvis = np.stack(self._pelvis)  # (N, B, 2)
+        chars = self._chars
+        return Snapshot(
+            frame=self._frame,
+            joints=self._joints.copy(),
+            trails=[pelvis[:, i] for i in range(len(chars))],
+            routes=[c.route.points.copy() for c in chars],
+            next_waypoint=[c.route.next for c in chars],
+            reached=[c.route.reached for c in chars],
+            goals=[None if c.agent is None else c.agent.goal for c in chars],
+            obstacles=np.array(self._obstacles, np.float64).reshape(-1, 3),
+            captions=[c.caption for c in chars],
+            version=(self._version, *(c.route.version for c in chars)),
+        )
+
+    def stats(self, index: int = 0) -> Stats:
+        """The live numbers of character `index`."""
+        i = _check_index(index, len(self._chars))
+        with self._lock:
+            count = min(len(self._pelvis), FPS + 1)
+            pelvis = np.stack([self._pelvis[k][i] for k in range(-count, 0)])  # (N, 2), the last second
+            seconds = (len(pelvis) - 1) / FPS
+            speed = float(np.linalg.norm(pelvis[-1] - pelvis[0]) / seconds) if seconds > 0 else 0.0
+            c = self._chars[i]
+            target = c.route.target()
+            to_next = None if target is None else float(np.linalg.norm(pelvis[-1] - target))
+            steps = list(self._step_ms) or [0.0]
+            left = 0 if c.route.reached or not len(c.route) else len(c.route) - c.route.next
+            return Stats(self._frame, steps[-1], max(steps), speed, to_next, left)
+
+    def pop_notices(self) -> list[str]:
+        """Messages for the user since the last call (retimed waypoints, an agent that gave up)."""
+        with self._lock:
+            out = list(self._notices)
+            self._notices.clear()
+            return out
+
+    def clip(self, index: int = 0, last_seconds: float | None = None) -> Motion:
+        """What character `index` did this episode (or its last `last_seconds`) as a Motion.
+
+        The caption is the current one; ``meta["captions"]`` lists every caption with the frame it
+        was given at; ``waypoints`` are the route's, their times frames of the episode.
+        """
+        i = _check_index(index, len(self._chars))
+        with self._lock:
+            joints = np.stack(self._history)[:, i]
+            c = self._chars[i]
+            first = self._frame - len(joints)  # frames dropped from a very long session
+            log = " | ".join(f"{f}: {t}" for f, t in c.captions_log)
+            waypoints = c.route.points.copy() if len(c.route) else None
+            seed = self.seed
+        if last_seconds is not None:
+            keep = max(1, int(round(last_seconds * FPS)))
+            first += max(0, len(joints) - keep)
+            joints = joints[-keep:]
+        meta = {"source": "motion-env studio", "seed": str(seed), "first_frame": str(first), "captions": log}
+        return Motion(joints, fps=FPS, text=c.caption, waypoints=waypoints, meta=meta)
+
+    def arrived(self, index: int, xz: Sequence[float], radius: float = ARRIVE_RADIUS) -> bool:
+        """True when character `index`'s pelvis has passed within `radius` of `xz` this episode."""
+        i = _check_index(index, len(self._chars))
+        with self._lock:
+            pelvis = np.stack(self._history)[:, i, 0][:, [0, 2]]
+        return bool((np.linalg.norm(pelvis - np.asarray(xz, np.float64), axis=1) < radius).any())
