@@ -38,6 +38,7 @@ class Args:
     num_envs: int = 16
     timesteps: int = 60_000  # env steps in all (summed over the envs)
     env_kwargs: str = ""  # extra env arguments "name=value,name=value" (Python literals)
+    algo_kwargs: str = ""  # hyperparameters that differ from SB3's defaults, "n_steps=128,..."
     eval_episodes: int = 100  # deterministic episodes of the trained policy
     seed: int = 0
     model: str = ""  # model folder ("" = the shipped model)
@@ -46,7 +47,7 @@ class Args:
     plot: bool = False  # only draw the curves of <out>/*.json
 
 
-def parse_env_kwargs(text: str) -> dict[str, Any]:
+def parse_env_kwargs(text: str) -> dict[str, Any]:  # also reads --algo-kwargs
     """ "a=1,b=False" -> {"a": 1, "b": False} (values are Python literals)."""
     out: dict[str, Any] = {}
     for part in filter(None, (p.strip() for p in text.split(","))):
@@ -101,12 +102,13 @@ def train(args: Args) -> dict[str, Any]:
     torch.set_num_threads(1)
     generator = MotionGenerator.from_pretrained(RANDOM_MODEL if args.random_model else (args.model or None))
     kwargs = {"generator": generator, **parse_env_kwargs(args.env_kwargs)}
+    hyper = parse_env_kwargs(args.algo_kwargs)
     log: list[tuple[int, bool]] = []
     start = time.perf_counter()
     if args.algo == "ppo":
         env = motion_env.make_sb3_env(args.env_id, args.num_envs, **kwargs)
         env.seed(args.seed)
-        model = sb3.PPO("MultiInputPolicy", env, seed=args.seed, device="cpu")
+        model = sb3.PPO("MultiInputPolicy", env, seed=args.seed, device="cpu", **hyper)
     else:
         env = motion_env.make_sb3_env(args.env_id, args.num_envs, **kwargs)
         env.seed(args.seed)
@@ -115,9 +117,9 @@ def train(args: Args) -> dict[str, Any]:
             env,
             replay_buffer_class=sb3.HerReplayBuffer,
             replay_buffer_kwargs={"n_sampled_goal": 4, "goal_selection_strategy": "future"},
-            learning_starts=500,
             seed=args.seed,
             device="cpu",
+            **{"learning_starts": 500, **hyper},
         )
     model.learn(total_timesteps=args.timesteps, callback=_callback(sb3, log), progress_bar=True)
     train_s = time.perf_counter() - start
@@ -131,6 +133,7 @@ def train(args: Args) -> dict[str, Any]:
         "env_id": args.env_id,
         "num_envs": args.num_envs,
         "env_kwargs": {k: repr(v) for k, v in settings.items()},
+        "algo_kwargs": {k: repr(v) for k, v in hyper.items()},
         "timesteps": args.timesteps,
         "train_seconds": round(train_s, 1),
         "episodes": [[steps, int(ok)] for steps, ok in log],

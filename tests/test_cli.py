@@ -94,7 +94,8 @@ def test_bench_runs_and_writes_json(tmp_path, capsys) -> None:
     results = json.loads(out.read_text())
     env = results["env_step_ms"]
     assert env["steps"] == 8 and env["p99"] >= env["median"] > 0
-    assert results["env_step_ms_learner"]["agent"] == "learner" and results["env_step_ms_learner"]["steps"] == 8
+    learner = results["env_step_ms_learner"]
+    assert learner["agent"] == "learner" and learner["steps"] == 8
     assert [(r["agent"], r["num_envs"]) for r in results["vector_env"]] == [
         ("route", 1), ("route", 3), ("learner", 1), ("learner", 3)
     ]  # fmt: skip

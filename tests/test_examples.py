@@ -9,6 +9,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -90,6 +91,73 @@ def test_rl_examples(tmp_path, name):
     assert (
         np.isfinite(result["eval_return"]) if name == "sb3_ppo" else isinstance(result["eval_success"], bool)
     )
+
+
+# The two Ray examples (the optional "ray" extra, best in its own venv: Ray pins gymnasium). They run
+# as scripts, as documented: Ray pickles the examples' callbacks and classes by value only from
+# __main__, and each run starts and stops its own local Ray instance.
+NO_RAY = "the optional 'ray' extra is not installed (pip install -c constraints.txt \"motion-env[ray]\")"
+
+
+def _run_script(name: str, out: Path, *flags: str) -> None:
+    command = [sys.executable, str(EXAMPLES / f"{name}.py"), "--random-model", "--out", str(out), *flags]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, f"{name} failed:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
+
+
+def test_rllib_ppo_example(tmp_path):
+    pytest.importorskip("ray.rllib", reason=NO_RAY)
+    _run_script(
+        "rllib_ppo", tmp_path, "--video", "gif", "--width", "96", "--height", "64",
+        "--iterations", "2", "--num-env-runners", "2", "--num-envs-per-env-runner", "2",
+        "--train-batch-size", "48", "--minibatch-size", "24", "--num-epochs", "1",
+        "--episode-steps", "8", "--frames-per-step", "2", "--eval-steps", "5",
+    )  # fmt: skip
+    result = json.loads((tmp_path / "result.json").read_text())
+    assert result["args"]["random_model"] is True
+    history = result["history"]
+    assert [row["iteration"] for row in history] == [1, 2]
+    assert history[-1]["env_steps"] >= 2 * 48  # both iterations sampled a full train batch
+    assert np.isfinite(history[-1]["episode_return_mean"])  # 8-step episodes ended in every batch
+    assert 0.0 <= history[-1]["success_rate"] <= 1.0
+    assert (tmp_path / "checkpoint" / "learner_group").is_dir()
+    motion = _check_outputs(tmp_path, "rllib_ppo_eval")
+    assert motion.num_frames == 1 + 5 * 2 == result["eval_frames"]
+    assert np.isfinite(result["eval_return"])
+
+
+def test_ray_batch_generate_example(tmp_path):
+    pytest.importorskip("ray.data", reason=NO_RAY)
+    _run_script(
+        "ray_batch_generate", tmp_path,
+        "--num-clips", "5", "--batch-size", "2", "--num-actors", "2", "--num-frames", "12",
+    )  # fmt: skip
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["num_clips"] == 5 and [c["id"] for c in summary["clips"]] == list(range(5))
+    for clip in summary["clips"]:
+        motion = motion_env.Motion.load(tmp_path / clip["file"])
+        assert motion.joints.shape == (12, 22, 3) and motion.text == clip["caption"]
+        assert motion.meta["seed"] == str(clip["seed"]) and motion.meta["row"] == str(clip["row"])
+        route = np.array(motion_env.args.parse_waypoints(clip["route"]))[:, :2]
+        assert np.allclose(motion.waypoints[:, :2], route)
+
+
+def test_ray_batch_generate_checks_its_table_before_starting_ray(tmp_path):
+    pytest.importorskip("ray.data", reason=NO_RAY)
+    table = tmp_path / "jobs.csv"
+    table.write_text('caption,route,seed\na person walks,"0,2;1,x",0\n')
+    module = _load("ray_batch_generate")
+    with pytest.raises(ValueError, match="row 0 route item 1"):
+        module.main(parse_dataclass(module.Args, ["--table", str(table), "--out", str(tmp_path / "out")]))
+
+
+@pytest.mark.parametrize("name", ["rllib_ppo", "ray_batch_generate"])
+def test_ray_examples_say_how_to_install_ray_when_it_is_missing(tmp_path, name):
+    if importlib.util.find_spec("ray") is not None:
+        pytest.skip("ray is installed: nothing is missing")
+    module = _load(name)
+    with pytest.raises(SystemExit, match=r"motion-env\[ray\]"):
+        module.main(parse_dataclass(module.Args, ["--random-model", "--out", str(tmp_path)]))
 
 
 @pytest.mark.slow

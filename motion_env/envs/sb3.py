@@ -50,9 +50,7 @@ def make_sb3_env(env_id: str = "motion_env/Waypoints-v0", num_envs: int = 8, **e
         A :class:`MotionVecEnv` (observations are the env's ``Dict``: use SB3's
         ``"MultiInputPolicy"``).
     """
-    import gymnasium as gym
-
-    import motion_env  # noqa: F401  (registers the ids)
+    import gymnasium as gym  # the ids are registered: this module is inside motion_env
 
     if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
         raise ValueError(f"num_envs must be an int >= 1, got {num_envs!r}")

@@ -50,10 +50,10 @@ class WaypointsVectorEnv(VectorEnv):
       or truncates resets it (a new caption, route and start from ``self.np_random``, or the reset
       options given to the last :meth:`reset`), ignores its action and returns its first
       observation with reward 0 and both flags False;
-    - ``"same_step"`` (what stable-baselines3 and RLlib expect): the step that ends an episode
-      also resets it and returns the new episode's first observation; the last observation and
-      info of the old one are in ``infos["final_obs"]`` and ``infos["final_info"]`` (object arrays,
-      None for the others; masks ``_final_obs`` and ``_final_info``).
+    - ``"same_step"`` (what stable-baselines3 expects; RLlib 2.60 uses next-step): the step that
+      ends an episode also resets it and returns the new episode's first observation; the last
+      observation and info of the old one are in ``infos["final_obs"]`` and ``infos["final_info"]``
+      (object arrays, None for the others; masks ``_final_obs`` and ``_final_info``).
 
     A (re)started character's ``infos["step_joints"]`` row is its first frame F times, as after
     :meth:`reset` (every info entry keeps one shape).
@@ -228,7 +228,8 @@ class WaypointsVectorEnv(VectorEnv):
         self._batch.set_text(text, index=None if index is None else int(index))  # the stream checks it
 
     def close(self, **kwargs: Any) -> None:
-        self._batch.stream = None
+        if hasattr(self, "_batch"):  # Gymnasium closes on __del__, also after a failed __init__
+            self._batch.stream = None
         self.closed = True
 
     def _episode(self) -> tuple[str, np.ndarray, np.ndarray]:

@@ -372,8 +372,8 @@ def test_vector_env_runs_n_characters_in_one_stream(gen):
 
 def test_vector_env_autoresets_on_the_next_step(gen):
     envs = gym.make_vec(
-        "motion_env/Waypoints-v0", num_envs=2, vectorization_mode="vector_entry_point", generator=gen, **WORLD,
-        max_episode_steps=3,
+        "motion_env/Waypoints-v0", num_envs=2, vectorization_mode="vector_entry_point", generator=gen,
+        max_episode_steps=3, **WORLD,
     )  # fmt: skip
     # A route that ends where the characters stand: they terminate on the first step.
     obs, infos = envs.reset(seed=0, options={"waypoints": [[0.0, 0.0]]})

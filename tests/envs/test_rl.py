@@ -183,3 +183,25 @@ def test_gymnasiums_record_video_works_with_the_rl_extra(gen, tmp_path):
     env.close()
     videos = list(tmp_path.glob("*.mp4"))
     assert len(videos) == 1 and videos[0].stat().st_size > 0
+
+
+def test_learning_curves_script_trains_evaluates_and_plots(tmp_path):
+    pytest.importorskip("stable_baselines3", reason="the optional 'rl' extra is not installed")
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "scripts" / "learning_curves.py"
+    spec = importlib.util.spec_from_file_location("learning_curves", path)
+    script = importlib.util.module_from_spec(spec)
+    sys.modules["learning_curves"] = script  # dataclasses look their module up there
+    spec.loader.exec_module(script)
+    args = script.Args(
+        name="smoke", random_model=True, num_envs=2, timesteps=16, eval_episodes=2, out=str(tmp_path),
+        env_kwargs="max_episode_steps=2", algo_kwargs="n_steps=8,batch_size=16,n_epochs=1",
+    )  # fmt: skip
+    result = script.main(args)
+    assert result["episodes"] and all(steps <= 16 for steps, _ in result["episodes"])
+    assert 0.0 <= result["eval_success"] <= 1.0 and result["algo_kwargs"]["n_steps"] == "8"
+    assert script.main(script.Args(plot=True, out=str(tmp_path))).is_file()
+    with pytest.raises(ValueError, match="name=value"):
+        script.parse_env_kwargs("frames_per_step")
