@@ -80,7 +80,8 @@ class _MotionVecEnv:
     for the whole batch) and the options given to ``set_options`` (the same for every env).
     ``step_wait`` returns per-env info dicts with the env's entries, ``terminal_observation`` and
     ``TimeLimit.truncated`` when an episode ended. ``env_method`` calls the vector env's method
-    with ``index=i`` for each index (``env_method("set_text", "a person jogs", indices=[0])``).
+    with ``index=i`` for each index where it takes one (``env_method("set_text", "a person jogs",
+    indices=[0])``), else once per index as it is (``compute_reward``, which HER calls).
     """
 
     def __init__(self, venv: Any) -> None:
@@ -132,9 +133,10 @@ class _MotionVecEnv:
         self, method_name: str, *method_args: Any, indices: Any = None, **method_kwargs: Any
     ) -> list:
         method = getattr(self.venv, method_name)
-        if "index" not in inspect.signature(method).parameters:
-            raise AttributeError(f"{method_name!r} of the vector env does not take an env index")
-        return [method(*method_args, index=i, **method_kwargs) for i in self._indices(indices)]
+        if "index" in inspect.signature(method).parameters:  # per character: set_text(text, index=i)
+            return [method(*method_args, index=i, **method_kwargs) for i in self._indices(indices)]
+        # Shared by every env (compute_reward, as HER calls it): the same call for each index.
+        return [method(*method_args, **method_kwargs) for _ in self._indices(indices)]
 
     def env_is_wrapped(self, wrapper_class: type, indices: Any = None) -> list[bool]:
         return [False for _ in self._indices(indices)]  # no Gymnasium wrappers inside

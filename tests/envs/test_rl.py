@@ -155,6 +155,20 @@ def test_make_sb3_env_follows_sb3s_vecenv_contract(gen):
     env.close()
 
 
+def test_sac_with_her_runs_on_the_goal_reach_vector_env(gen):
+    sb3 = pytest.importorskip("stable_baselines3", reason="the optional 'rl' extra is not installed")
+    env = motion_env.make_sb3_env("motion_env/GoalReach-v0", num_envs=2, generator=gen, max_episode_steps=3)
+    model = sb3.SAC(
+        "MultiInputPolicy", env, replay_buffer_class=sb3.HerReplayBuffer, learning_starts=8, batch_size=8,
+        device="cpu",
+    )  # fmt: skip
+    model.learn(total_timesteps=16)  # HER relabels through env_method("compute_reward", ...)
+    achieved, desired = np.zeros((5, 2)), np.ones((5, 2))
+    (reward,) = env.env_method("compute_reward", achieved, desired, None, indices=[0])
+    assert reward.shape == (5,)
+    env.close()
+
+
 def test_make_sb3_env_rejects_bad_arguments_and_names_a_missing_sb3(gen, monkeypatch):
     with pytest.raises(ValueError, match="num_envs must be an int >= 1"):
         motion_env.make_sb3_env("motion_env/Waypoints-v0", num_envs=0, generator=gen)
