@@ -16,13 +16,8 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from motion_env.envs.core import (
-    EnvConfig,
-    check_actions,
-    sample_route,
-    sample_start,
-    validate_start,
-)
+from motion_env.envs.config import EnvConfig, check_actions, validate_start
+from motion_env.envs.routes import sample_route, sample_start
 from motion_env.envs.waypoints import action_space, build_characters, caption_size, observation_space
 from motion_env.generation.request import check_text
 from motion_env.motion.skeleton import FPS
@@ -40,7 +35,7 @@ class WaypointsVectorEnv(VectorEnv):
     """N Waypoints-v0 characters stepped together through one batched generator stream.
 
     Arguments are those of :class:`motion_env.envs.WaypointsEnv` (its behaviour settings passed
-    through to :class:`~motion_env.envs.core.EnvConfig`) plus ``num_envs`` and
+    through to :class:`~motion_env.envs.config.EnvConfig`) plus ``num_envs`` and
     ``max_episode_steps`` (truncation is done here, since no ``TimeLimit`` wraps a vector env;
     ``gym.make_vec`` passes the registration's 150). ``render_mode`` must be None.
 

@@ -10,17 +10,16 @@ import numpy as np
 from gymnasium import spaces
 
 from motion_env.envs.arena import Obstacle, circles, validate_obstacles
-from motion_env.envs.core import (
+from motion_env.envs.config import (
     OBS_BOUNDS,
     ROUTE_AHEAD,
-    CharacterBatch,
     EnvConfig,
     check_actions,
-    sample_route,
-    sample_start,
     validate_start,
     validate_text_pool,
 )
+from motion_env.envs.core import CharacterBatch
+from motion_env.envs.routes import sample_route, sample_start
 from motion_env.generation.request import check_text
 from motion_env.motion.skeleton import FPS, NUM_JOINTS
 from motion_env.motion.trajectory import MAX_COORDINATE, validate_waypoints
