@@ -3,9 +3,9 @@
 Each subcommand has an ``add_<name>`` function that declares its arguments and a ``run_<name>``
 function that calls the library: :mod:`.generate` (``generate``, ``bench``), :mod:`.files`
 (``show``, ``replay``), :mod:`.offline` (``data build``, ``train``), :mod:`.export` (``export``),
-:mod:`.retarget` (``retarget``), :mod:`.studio` (``studio``); :mod:`.common` holds what they
-share. The heavy modules are imported only by the command that needs them, after its cheap checks,
-so `motion-env --help` and a typo are answered at once.
+:mod:`.retarget` (``retarget``), :mod:`.studio` (``studio``), :mod:`.evaluate` (``eval control``);
+:mod:`.common` holds what they share. The heavy modules are imported only by the command that
+needs them, after its cheap checks, so `motion-env --help` and a typo are answered at once.
 
 The rules every command follows:
 
@@ -27,6 +27,7 @@ import sys
 from collections.abc import Sequence
 
 from motion_env.cli.common import USER_ERRORS, CommandParser, one_line, reported_warnings
+from motion_env.cli.evaluate import add_eval
 from motion_env.cli.export import add_export
 from motion_env.cli.files import add_replay, add_show
 from motion_env.cli.generate import add_bench, add_generate
@@ -49,7 +50,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"motion-env {_version()}")
     sub = parser.add_subparsers(dest="command", required=True)
-    commands = (add_show, add_data, add_train, add_generate, add_bench, add_replay, add_export, add_retarget)
+    commands = (
+        add_show, add_data, add_train, add_generate, add_bench, add_eval, add_replay, add_export,
+        add_retarget,
+    )  # fmt: skip
     for add in (*commands, add_studio):
         add(sub)
     return parser
@@ -65,6 +69,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     args = build_parser().parse_args(argv)
     prog = f"motion-env {args.command}" + (f" {args.data_command}" if args.command == "data" else "")
+    prog += f" {args.eval_command}" if args.command == "eval" else ""
     try:
         with reported_warnings(prog):
             return int(args.run(args) or 0)

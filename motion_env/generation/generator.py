@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import asdict
 from pathlib import Path
@@ -24,6 +25,7 @@ import torch
 
 from motion_env.generation.feet import FootPinner
 from motion_env.generation.pipeline import Pipeline
+from motion_env.generation.refine import RefineConfig
 from motion_env.generation.request import (
     BatchRequest,
     check_batch_request,
@@ -106,6 +108,8 @@ class MotionGenerator:
             read through the generator too (``gen.vqvae``, ``gen.gpt``, ``gen.controller``,
             ``gen.device``, ``gen.rate``, ``gen.path_horizon``, ``gen.text_encoder``).
         sampling: token sampling settings (assignable); mean, std: the feature statistics.
+        refine_config: :class:`~motion_env.generation.refine.RefineConfig`, the test-time
+            refinement of clips with joint targets or objectives (assignable).
         untrained, name, training_info: what the weights are and how they were trained.
     """
 
@@ -131,6 +135,8 @@ class MotionGenerator:
         self.name = name
         # Per model, how it was trained (step, metrics, settings), carried from checkpoint to checkpoint.
         self.training_info: dict[str, dict[str, Any]] = {}
+        # The test-time refinement of clips with joint targets or objectives (assignable).
+        self.refine_config = RefineConfig()
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -302,6 +308,8 @@ class MotionGenerator:
         seed: int | None = None,
         start: np.ndarray | Sequence[float] | None = None,
         infeasible: str = "raise",
+        joint_targets: np.ndarray | None = None,
+        objectives: Sequence[Any] | None = None,
     ) -> Motion:
         """One motion clip.
 
@@ -314,12 +322,24 @@ class MotionGenerator:
             start: (x, z, heading) of the first frame; default origin facing +Z.
             infeasible: timed waypoints that ask for more than ``MAX_SPEED`` raise a ValueError
                 ("raise"), or are retimed to the fastest feasible frame with a warning ("warn").
+            joint_targets: None, or (T, 22, 3) world positions (metres) that joints must reach,
+                NaN where a joint is free: any joints, any frames (one keyframe to every frame).
+                Without `waypoints` the path controller walks to where the targets are.
+            objectives: None, or a list of :mod:`motion_env.objectives` (``KeepOut``,
+                ``HeightLimit``, ``StayInside``) and callables ``f(joints) -> scalar`` (joints: a
+                differentiable ``torch.Tensor`` (T, 22, 3)) that the refinement lowers.
+
+        With targets or objectives the clip goes through the test-time refinement
+        (:mod:`motion_env.generation.refine`, settings in ``gen.refine_config``); targets it
+        cannot meet within 2 cm (out of the body's reach) and objectives that still fail are
+        named in a UserWarning, with the distance, and ``meta["control"]`` sums up the errors.
 
         Returns:
             Motion with joints (T, 22, 3) float32 world metres, fps 20, the caption, the waypoints
             and meta (seed, model).
         """
-        return self._clips(check_request(text, waypoints, num_frames, seed, start, infeasible))[0]
+        req = check_request(text, waypoints, num_frames, seed, start, infeasible, joint_targets, objectives)
+        return self._clips(req)[0]
 
     @torch.no_grad()
     def generate_batch(
@@ -330,6 +350,8 @@ class MotionGenerator:
         seed: int | None = None,
         starts: np.ndarray | None = None,
         infeasible: str = "raise",
+        joint_targets: Any = None,
+        objectives: Any = None,
     ) -> list[Motion]:
         """B clips at once (one batched pass through each model).
 
@@ -342,14 +364,22 @@ class MotionGenerator:
                 so row 0 equals ``generate(texts[0], ..., seed=seed)``.
             starts: (B, 3) x, z, heading per character.
             infeasible: as in :meth:`generate`.
+            joint_targets: None, one (T, 22, 3) array for every character, or B entries (each None
+                or an array); as in :meth:`generate`.
+            objectives: None, one list for every character, or B lists (each None or a list).
 
         Returns:
             B :class:`Motion` clips of `num_frames` frames.
         """
-        return self._clips(check_batch_request(texts, waypoints, num_frames, seed, starts, infeasible))
+        req = check_batch_request(
+            texts, waypoints, num_frames, seed, starts, infeasible, joint_targets, objectives
+        )
+        return self._clips(req)
 
     def _clips(self, req: BatchRequest) -> list[Motion]:
         """Every stage of the pipeline, once over whole clips."""
+        if req.targets is not None:
+            return self._controlled_clips(req)
         p = self.pipeline
         n_tok = math.ceil(req.num_frames / p.rate)
         emb = p.encode_text(req.texts)
@@ -361,6 +391,23 @@ class MotionGenerator:
             joints = FootPinner(1).apply(0, joints, body[i][:, FOOT_CONTACT])[: req.num_frames]
             meta = self._meta(req.seed, i)
             motions.append(Motion(joints=joints, fps=FPS, text=text, waypoints=req.routes[i], meta=meta))
+        return motions
+
+    def _controlled_clips(self, req: BatchRequest) -> list[Motion]:
+        """The clips of a request with joint targets or objectives (:mod:`.refine`)."""
+        from motion_env.generation.refine import controlled_clips
+
+        motions = []
+        for i, (joints, report) in enumerate(controlled_clips(self.pipeline, req, self.refine_config)):
+            meta = self._meta(req.seed, i)
+            if report is not None:
+                meta["control"] = report.summary()
+                if report.message:
+                    who = "" if len(req.texts) == 1 else f"character {i}: "
+                    warnings.warn(f"{who}{report.message}", UserWarning, stacklevel=3)
+            motions.append(
+                Motion(joints=joints, fps=FPS, text=req.texts[i], waypoints=req.routes[i], meta=meta)
+            )
         return motions
 
     @torch.no_grad()

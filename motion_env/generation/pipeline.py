@@ -188,13 +188,19 @@ class Pipeline:
 
     # ------------------------------------------------------------------ 3. tokens
     def sample_tokens(
-        self, text_emb: torch.Tensor, paths: np.ndarray, num_tokens: int, seed: int
+        self,
+        text_emb: torch.Tensor,
+        paths: np.ndarray,
+        num_tokens: int,
+        seed: int,
+        logits_out: list[torch.Tensor] | None = None,
     ) -> torch.Tensor:
-        """Whole clips' tokens: (B, num_tokens) long, conditioned on the caption and the root paths."""
+        """Whole clips' tokens: (B, num_tokens) long, conditioned on the caption and the root paths
+        (`logits_out` receives the logits of each token, see :meth:`TokenGPT.generate`)."""
         feats = np.stack([token_path_features(p, self.rate)[:num_tokens] for p in paths])
         gens = [row_generator(seed, i, TOKEN_STREAM) for i in range(len(paths))]
         return self.gpt.generate(
-            text_emb, torch.from_numpy(feats).to(self.device), num_tokens, gens, self.sampling
+            text_emb, torch.from_numpy(feats).to(self.device), num_tokens, gens, self.sampling, logits_out
         )
 
     # ------------------------------------------------------------------ 4. decode

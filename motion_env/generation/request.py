@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from motion_env.motion.checks import check_finite
-from motion_env.motion.skeleton import FPS
+from motion_env.motion.skeleton import FPS, JOINT_NAMES, NUM_JOINTS
 from motion_env.motion.trajectory import MAX_COORDINATE, validate_waypoints
 
 MAX_FRAMES = 12_000
@@ -47,6 +47,8 @@ __all__ = [
     "BatchRequest",
     "check_batch_request",
     "check_feasible",
+    "check_joint_targets",
+    "check_objectives",
     "check_request",
     "check_num_frames",
     "check_route",
@@ -255,6 +257,125 @@ def warn_past_the_end(route: np.ndarray | None, num_frames: int, what: str = "wa
         )
 
 
+def check_joint_targets(
+    targets: Any, num_frames: int | None, what: str = "joint_targets", first_frame: int = 0
+) -> np.ndarray | None:
+    """None or a (T, 22, 3) array of world targets (metres, NaN = the joint is free at that frame).
+
+    Args:
+        targets: the array; T must equal `num_frames` (None: any T >= 1, the stream's targets).
+        num_frames: the clip's length.
+        what: the argument's name in messages.
+        first_frame: the frame of row 0 (the stream's targets start anywhere), for messages.
+
+    Returns:
+        The (T, 22, 3) float32 targets, or None when there are none (None, or every entry NaN).
+        Raises ValueError naming the frame and joint of the first bad entry: a wrong shape (a
+        target outside the clip's frames), an infinite value, a joint given only some of its
+        coordinates, a coordinate beyond MAX_COORDINATE.
+    """
+    if targets is None:
+        return None
+    try:
+        arr = np.asarray(targets, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"{what} must be a numeric array of shape (T, {NUM_JOINTS}, 3), NaN where a joint is free"
+        ) from None
+    if arr.ndim != 3 or arr.shape[1:] != (NUM_JOINTS, 3):
+        raise ValueError(
+            f"{what} must have shape (num_frames, {NUM_JOINTS}, 3) (world x, y, z per frame and joint, NaN "
+            f"where free), got {arr.shape}"
+        )
+    if num_frames is not None and arr.shape[0] != num_frames:
+        outside = " (targets outside the clip)" if arr.shape[0] > num_frames else ""
+        raise ValueError(
+            f"{what} has {arr.shape[0]} frames, the clip has num_frames={num_frames}{outside}: give one row "
+            f"per frame of the clip, NaN where a joint is free"
+        )
+    if arr.shape[0] < 1:
+        raise ValueError(f"{what} has no frames")
+
+    def name(frame: int, joint: int) -> str:
+        return f"frame {frame + first_frame}, joint {joint} ({JOINT_NAMES[joint]})"
+
+    bad = np.argwhere(np.isinf(arr).any(axis=-1))
+    if len(bad):
+        f, j = bad[0]
+        raise ValueError(f"{what} has an infinite value at {name(f, j)}: {arr[f, j].tolist()}")
+    nan = np.isnan(arr)
+    partial = np.argwhere(nan.any(axis=-1) & ~nan.all(axis=-1))
+    if len(partial):
+        f, j = partial[0]
+        raise ValueError(
+            f"{what} gives only some coordinates at {name(f, j)}: {arr[f, j].tolist()}; give x, y and z, "
+            f"or NaN for all three (a height alone: motion_env.objectives.HeightLimit)"
+        )
+    far = np.argwhere(np.nan_to_num(np.abs(arr)).max(axis=-1) > MAX_COORDINATE)
+    if len(far):
+        f, j = far[0]
+        raise ValueError(
+            f"{what} at {name(f, j)} is {arr[f, j].tolist()}: coordinates must lie within "
+            f"{MAX_COORDINATE:g} m of the origin"
+        )
+    if nan.all():
+        return None
+    return arr.astype(np.float32)
+
+
+def check_objectives(objectives: Any, what: str = "objectives") -> tuple[Any, ...]:
+    """None or a list of objectives (:mod:`motion_env.objectives`, or callables ``f(joints) -> scalar``)
+    -> a tuple; TypeError naming the first entry that is not callable. What a callable returns is
+    checked when the generator first evaluates it (it needs torch)."""
+    if objectives is None:
+        return ()
+    if callable(objectives) or isinstance(objectives, str | bytes) or not isinstance(objectives, Sequence):
+        raise TypeError(
+            f"{what} must be a list of objectives (e.g. [motion_env.objectives.KeepOut(...)]), "
+            f"got {type(objectives).__name__}"
+        )
+    for k, obj in enumerate(objectives):
+        if not callable(obj):
+            raise TypeError(
+                f"{what}[{k}] is a {type(obj).__name__}, not an objective: give a motion_env.objectives "
+                f"object or a callable f(joints) -> scalar (joints: torch.Tensor (T, 22, 3))"
+            )
+    return tuple(objectives)
+
+
+def _per_row(values: Any, batch: int, is_one: Any, what: str) -> list[Any]:
+    """None, one value for every row, or B entries -> B entries."""
+    if values is None:
+        return [None] * batch
+    if is_one(values):
+        return [values] * batch
+    if not isinstance(values, Sequence | np.ndarray) or len(values) != batch:
+        raise ValueError(f"{what} must be None, one value for every character, or a list of {batch} entries")
+    return list(values)
+
+
+def per_row_controls(
+    joint_targets: Any, objectives: Any, batch: int, num_frames: int
+) -> tuple[list[np.ndarray | None], list[tuple[Any, ...]]]:
+    """The joint targets and objectives of each character of a batch (None, one for all, or B entries)."""
+
+    def one_array(v: Any) -> bool:
+        return np.asarray(v, dtype=object).ndim == 3 if not isinstance(v, np.ndarray) else v.ndim == 3
+
+    def one_list(v: Any) -> bool:
+        return (
+            not isinstance(v, Sequence) or not all(o is None or isinstance(o, Sequence) for o in v) or not v
+        )
+
+    targets = _per_row(joint_targets, batch, one_array, "joint_targets")
+    objs = _per_row(objectives, batch, one_list, "objectives")
+    name = (lambda w, i: w) if batch == 1 else (lambda w, i: f"{w} of character {i}")
+    return (
+        [check_joint_targets(t, num_frames, name("joint_targets", i)) for i, t in enumerate(targets)],
+        [check_objectives(o, name("objectives", i)) for i, o in enumerate(objs)],
+    )
+
+
 @dataclass(frozen=True)
 class BatchRequest:
     """A validated request for B characters.
@@ -265,6 +386,9 @@ class BatchRequest:
         starts: (B, 3) float32 x, z, heading of frame 0.
         num_frames: frames per clip (1 to MAX_FRAMES).
         seed: the resolved seed (a fresh one when the caller gave None).
+        targets: per character, None or (num_frames, 22, 3) float32 joint targets (NaN = free);
+            None for the whole request when no character has targets or objectives.
+        objectives: per character, a tuple of objectives (None as for `targets`).
     """
 
     texts: list[str]
@@ -272,6 +396,8 @@ class BatchRequest:
     starts: np.ndarray
     num_frames: int
     seed: int
+    targets: list[np.ndarray | None] | None = None
+    objectives: list[tuple[Any, ...]] | None = None
 
 
 def check_batch_request(
@@ -281,11 +407,23 @@ def check_batch_request(
     seed: int | None,
     starts: Any,
     infeasible: str = "raise",
+    joint_targets: Any = None,
+    objectives: Any = None,
 ) -> BatchRequest:
     """Check every argument of a batch request once and return the validated values (no model needed)."""
     texts = check_texts(texts)
     routes = per_row_waypoints(waypoints, len(texts))
-    return _finish(texts, routes, check_starts(starts, len(texts)), num_frames, seed, infeasible)
+    req = _finish(texts, routes, check_starts(starts, len(texts)), num_frames, seed, infeasible)
+    if joint_targets is None and objectives is None:
+        return req
+    targets, objs = per_row_controls(joint_targets, objectives, len(texts), req.num_frames)
+    return _with_controls(req, targets, objs)
+
+
+def _with_controls(req: BatchRequest, targets: list, objs: list) -> BatchRequest:
+    if all(t is None for t in targets) and not any(objs):
+        return req
+    return BatchRequest(req.texts, req.routes, req.starts, req.num_frames, req.seed, targets, objs)
 
 
 def check_request(
@@ -295,11 +433,17 @@ def check_request(
     seed: int | None,
     start: Any,
     infeasible: str = "raise",
+    joint_targets: Any = None,
+    objectives: Any = None,
 ) -> BatchRequest:
-    """:func:`check_batch_request` for one character, with messages naming `text`, `waypoints`
-    and `start` (a batch of one)."""
+    """:func:`check_batch_request` for one character, with messages naming `text`, `waypoints`,
+    `start`, `joint_targets` and `objectives` (a batch of one)."""
     starts = np.zeros((1, 3), np.float32) if start is None else check_start(start)[None]
-    return _finish([check_text(text)], [check_route(waypoints)], starts, num_frames, seed, infeasible)
+    req = _finish([check_text(text)], [check_route(waypoints)], starts, num_frames, seed, infeasible)
+    if joint_targets is None and objectives is None:
+        return req
+    targets = [check_joint_targets(joint_targets, req.num_frames)]
+    return _with_controls(req, targets, [check_objectives(objectives)])
 
 
 def _finish(

@@ -407,6 +407,7 @@ class TokenGPT(nn.Module):
         num_tokens: int,
         generators: Sequence[torch.Generator],
         sampling: SamplingConfig | None = None,
+        logits_out: list[torch.Tensor] | None = None,
     ) -> torch.Tensor:
         """Sample token sequences of any length (the window slides past block_size).
 
@@ -421,6 +422,8 @@ class TokenGPT(nn.Module):
             generators: one torch.Generator per row (each row's samples then equal those of
                 generating it alone with that generator).
             sampling: temperature, nucleus and guidance (default: the model's distribution).
+            logits_out: a list that receives the (B, vocab_size) logits each token was drawn
+                from, in order (the joint refinement's prior); None keeps nothing.
 
         Returns:
             (B, num_tokens) long token ids, on the CPU.
@@ -434,6 +437,8 @@ class TokenGPT(nn.Module):
         prev = None
         for i in range(num_tokens):
             logits, cache = self.step(cache, prev, path_feats[:, i])
+            if logits_out is not None:
+                logits_out.append(logits.detach().cpu())
             out[:, i] = sample_tokens(logits, generators, sampling)
             prev = out[:, i].to(text_emb.device)
         return out

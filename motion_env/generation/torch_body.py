@@ -1,0 +1,89 @@
+"""Torch twins of the motion math the refinement differentiates through (numpy originals in
+:mod:`motion_env.motion`; ``tests/generation/test_refine.py`` checks that they agree).
+
+- :func:`local_pose_torch`: decoded features -> the local pose of
+  :func:`~motion_env.generation.recompose.local_pose_from_features`, with the per-frame yaw between
+  the features' root frame and the hips-and-shoulders heading frame held fixed (:func:`frame_yaw`);
+- :func:`with_bone_lengths_torch`: :func:`motion_env.motion.kinematics.with_bone_lengths`;
+- :func:`place_on_path_torch`: :func:`~motion_env.generation.recompose.recompose` onto a fixed path.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from motion_env.motion.features import features_to_joints, recover_root
+from motion_env.motion.skeleton import (
+    BONE_LENGTHS,
+    FOOT_JOINTS,
+    NUM_JOINTS,
+    PARENTS,
+    RAW_OFFSETS,
+    RIC,
+    ROOT_Y,
+)
+from motion_env.motion.trajectory import root_path_from_joints
+
+__all__ = [
+    "frame_yaw",
+    "local_pose_torch",
+    "place_on_path_torch",
+    "rotate_y_torch",
+    "with_bone_lengths_torch",
+]
+
+
+def rotate_y_torch(points: torch.Tensor, theta: torch.Tensor) -> torch.Tensor:
+    """:func:`motion_env.motion.kinematics.rotate_y` in torch: (..., 3) points, theta broadcast to (...)."""
+    c, s = torch.cos(theta), torch.sin(theta)
+    x, y, z = points[..., 0], points[..., 1], points[..., 2]
+    return torch.stack([x * c + z * s, y, -x * s + z * c], dim=-1)
+
+
+def frame_yaw(features: np.ndarray) -> np.ndarray:
+    """(n, 263) features -> (n,) yaw from the features' root frame to the local pose's heading frame.
+
+    :func:`~motion_env.generation.recompose.local_pose_from_features` turns the features into world
+    joints with the features' own (smoothed) root rotation and takes out the smoothed
+    hips-and-shoulders heading; the local pose is the RIC channels turned by the difference.
+    """
+    heading, _ = recover_root(features)
+    joints = features_to_joints(np.asarray(features, np.float32))
+    return (heading - root_path_from_joints(joints)[:, 2]).astype(np.float32)
+
+
+def local_pose_torch(features: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
+    """(n, 263) features and (n,) :func:`frame_yaw` -> (n, 22, 3) local pose (pelvis at x = z = 0)."""
+    n = features.shape[0]
+    ric = features[:, RIC].reshape(n, NUM_JOINTS - 1, 3)
+    body = rotate_y_torch(ric, yaw[:, None])
+    pelvis = torch.stack([torch.zeros_like(yaw), features[:, ROOT_Y.start], torch.zeros_like(yaw)], dim=-1)
+    return torch.cat([pelvis[:, None], body], dim=1)
+
+
+def with_bone_lengths_torch(joints: torch.Tensor) -> torch.Tensor:
+    """:func:`motion_env.motion.kinematics.with_bone_lengths` with the canonical lengths: (T, 22, 3)."""
+    lengths = joints.new_tensor(BONE_LENGTHS)
+    rest = joints.new_tensor(RAW_OFFSETS)
+    out = [joints[:, 0]]
+    for j in range(1, NUM_JOINTS):
+        vec = joints[:, j] - joints[:, PARENTS[j]]
+        norm = vec.norm(dim=-1, keepdim=True)
+        direction = torch.where(norm > 1e-9, vec / norm.clamp_min(1e-9), rest[j])
+        out.append(out[PARENTS[j]] + direction * lengths[j])
+    rebuilt = torch.stack(out, dim=1)
+    feet = list(FOOT_JOINTS)
+    lift = joints[:, feet, 1].min(dim=1).values - rebuilt[:, feet, 1].min(dim=1).values
+    return rebuilt + torch.stack([torch.zeros_like(lift), lift, torch.zeros_like(lift)], dim=-1)[:, None]
+
+
+def place_on_path_torch(local: torch.Tensor, path: torch.Tensor) -> torch.Tensor:
+    """:func:`~motion_env.generation.recompose.recompose` (``face_travel=False``) with bone lengths:
+    (T, 22, 3) local pose, (T, 3) path (x, z, heading; already turned to the travel) -> world joints."""
+    local = (
+        local - torch.stack([local[:, 0, 0], torch.zeros_like(local[:, 0, 0]), local[:, 0, 2]], -1)[:, None]
+    )
+    world = rotate_y_torch(local, path[:, None, 2])
+    shift = torch.stack([path[:, 0], torch.zeros_like(path[:, 0]), path[:, 1]], dim=-1)
+    return with_bone_lengths_torch(world + shift[:, None])

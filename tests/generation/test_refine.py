@@ -1,0 +1,181 @@
+"""Joint targets and objectives: the test-time refinement (generation/refine.py, targets.py,
+torch_body.py, stream_control.py) on the tiny random model and on synthetic math; one short
+check on the shipped model."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+import torch
+
+from motion_env.generation.feet import two_bone_ik
+from motion_env.generation.recompose import local_pose_from_features, recompose
+from motion_env.generation.targets import FADE, causal_field, finish, residual_field
+from motion_env.generation.torch_body import frame_yaw, local_pose_torch, place_on_path_torch
+from motion_env.motion.features import joints_to_features
+from motion_env.motion.kinematics import bone_lengths, with_bone_lengths
+from motion_env.motion.skeleton import BONE_LENGTHS, JOINT_INDEX
+from motion_env.objectives import HeightLimit, KeepOut
+
+HEAD, RIGHT_WRIST, LEFT_FOOT = JOINT_INDEX["head"], JOINT_INDEX["right_wrist"], JOINT_INDEX["left_foot"]
+
+
+@pytest.fixture(scope="module")
+def walk(random_generator) -> np.ndarray:
+    """A real-looking clip: the random generator's output is noise, so use a clip it produced only
+    for its shape, and a procedural walk for the math."""
+    t = np.arange(60) / 20.0
+    m = random_generator.generate("a person walks", num_frames=60, seed=1)
+    joints = m.joints.astype(np.float64).copy()
+    joints[..., 2] += 1.2 * t[:, None]
+    return with_bone_lengths(joints)
+
+
+def test_torch_twin_equals_the_numpy_recompose(walk) -> None:
+    feats = joints_to_features(walk)  # (59, 263)
+    local = local_pose_from_features(feats)
+    yaw = torch.as_tensor(frame_yaw(feats))
+    twin = local_pose_torch(torch.as_tensor(feats), yaw).numpy()
+    np.testing.assert_allclose(twin, local, atol=1e-4)
+    path = np.stack([np.linspace(0, 2, 59), np.linspace(1, 3, 59), np.linspace(0, 1, 59)], 1).astype(
+        np.float32
+    )
+    world = with_bone_lengths(recompose(local, path, face_travel=False))
+    twin_world = place_on_path_torch(torch.as_tensor(local), torch.as_tensor(path)).numpy()
+    np.testing.assert_allclose(twin_world, world, atol=1e-4)
+
+
+def test_residual_field_interpolates_fades_and_holds() -> None:
+    known = np.zeros(100, bool)
+    known[[40, 50]] = True
+    res = np.zeros((100, 1))
+    res[40], res[50] = 1.0, 3.0
+    field = residual_field(known, res)[:, 0]
+    assert field[40] == 1.0 and field[50] == 3.0 and field[45] == pytest.approx(2.0)
+    assert field[40 - FADE] == 0.0 and field[50 + FADE] == 0.0 and 0 < field[35] < 1
+    assert np.abs(np.diff(field)).max() < 0.5  # no pop
+    hold = np.zeros(100, bool)
+    hold[60:75] = True
+    known[:] = False
+    known[70] = True
+    res[70] = 2.0
+    held = residual_field(known, res, hold=hold)[:, 0]
+    assert np.all(held[60:75] == 2.0)  # a planted foot moves as one block
+
+
+def test_causal_field_is_exact_at_targets_and_smooth() -> None:
+    current = np.zeros((30, 3))
+    target = np.full((30 + FADE, 3), np.nan)
+    target[20] = [0.3, 0.0, 0.0]
+    known = ~np.isnan(target[:, 0])
+    out, carry = causal_field(current, target, known, None)
+    assert np.allclose(out[20], [0.3, 0, 0]) and np.allclose(out[:9], 0)
+    assert np.abs(np.diff(out[:, 0])).max() < 0.06
+    assert carry[0] == 9 and np.allclose(carry[1], [0.3, 0, 0])
+    # The same frames in two calls give the same result (the stream decodes 4 frames at a time).
+    a, c = causal_field(current[:12], target[: 12 + FADE + 1], known[: 12 + FADE + 1], None)
+    b, _ = causal_field(current[12:], target[12:], known[12:], c)
+    np.testing.assert_allclose(np.concatenate([a, b]), out)
+
+
+def test_two_bone_ik_keeps_bones() -> None:
+    rng = np.random.default_rng(0)
+    hip = rng.normal(size=(50, 3))
+    knee = hip + rng.normal(size=(50, 3)) * 0.3
+    ankle = knee + rng.normal(size=(50, 3)) * 0.3
+    goal = hip + rng.normal(size=(50, 3)) * 0.2
+    k2, a2 = two_bone_ik(hip, knee, ankle, goal)
+    np.testing.assert_allclose(
+        np.linalg.norm(k2 - hip, axis=1), np.linalg.norm(knee - hip, axis=1), atol=1e-9
+    )
+    np.testing.assert_allclose(
+        np.linalg.norm(a2 - k2, axis=1), np.linalg.norm(ankle - knee, axis=1), atol=1e-9
+    )
+
+
+def test_finish_meets_reachable_targets_and_keeps_bones(walk) -> None:
+    targets = np.full(walk.shape, np.nan, np.float32)
+    targets[30, RIGHT_WRIST] = walk[30, RIGHT_WRIST] + [0.05, 0.08, 0.03]
+    targets[30, HEAD] = walk[30, HEAD] + [0.04, -0.05, 0.0]
+    targets[20, LEFT_FOOT] = walk[20, LEFT_FOOT] + [0.06, 0.0, 0.05]
+    targets[40, 0] = walk[40, 0] + [0.0, -0.06, 0.0]
+    ceiling = float(walk[:, HEAD, 1].min()) - 0.1
+    out = finish(walk, targets, [HeightLimit("head", max_height=ceiling, frames=(45, 55))],
+                 np.zeros((len(walk), 2), bool))  # fmt: skip
+    known = ~np.isnan(targets[..., 0])
+    assert np.linalg.norm(out[known] - targets[known], axis=-1).max() < 1e-3
+    np.testing.assert_allclose(
+        bone_lengths(out)[:, 1:], np.broadcast_to(BONE_LENGTHS[1:], (len(out), 21)), rtol=0.01
+    )
+    assert out[45:55, HEAD, 1].max() <= walk[:, HEAD, 1].min() - 0.1 + 1e-6
+    assert np.abs(out[:, [7, 8]] - walk[:, [7, 8]]).max() < 0.15  # feet stay near where they were
+
+
+def test_generate_with_targets_and_objectives(random_generator) -> None:
+    gen = random_generator
+    base = gen.generate("a person walks", num_frames=40, seed=0)
+    targets = np.full((40, 22, 3), np.nan, np.float32)
+    targets[20, RIGHT_WRIST] = base.joints[20, RIGHT_WRIST] + [0.05, 0.05, 0.0]
+    targets[30, 0] = base.joints[30, 0] + [0.1, 0.0, 0.1]
+    keep = KeepOut(center=(5.0, 5.0), radius=0.3)
+    called = []
+
+    def user(joints: torch.Tensor) -> torch.Tensor:
+        called.append(joints.shape)
+        return joints[:, 21, 1].sum() * 0.0 + (joints[:, 21, 1] - 5.0).clamp_min(0).sum()
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m = gen.generate(
+            "a person walks", num_frames=40, seed=0, joint_targets=targets, objectives=[keep, user]
+        )
+    assert m.joints.shape == (40, 22, 3) and "control" in m.meta and called
+    assert np.linalg.norm(m.joints[30, 0, [0, 2]] - targets[30, 0, [0, 2]]) < 1e-3
+    # Rows without targets in a batch are the plain clips.
+    batch = gen.generate_batch(["a person walks", "a person runs"], num_frames=40, seed=0,
+                               joint_targets=[targets, None])  # fmt: skip
+    plain = gen.generate_batch(["a person walks", "a person runs"], num_frames=40, seed=0)
+    np.testing.assert_array_equal(batch[1].joints, plain[1].joints)
+
+
+def test_unreachable_targets_are_named_in_a_warning(random_generator) -> None:
+    targets = np.full((40, 22, 3), np.nan, np.float32)
+    targets[20, 0] = [0.0, 0.9, 0.0]
+    targets[20, RIGHT_WRIST] = [0.0, 3.0, 0.0]  # 2 m above the pelvis: beyond any arm
+    with pytest.warns(UserWarning, match=r"right_wrist at frame 20 by \d+"):
+        random_generator.generate("a person walks", num_frames=40, seed=0, joint_targets=targets)
+
+
+def test_stream_meets_targets_given_ahead(random_generator) -> None:
+    stream = random_generator.stream(["a person walks"], seed=0)
+    frames = [stream.step()[0] for _ in range(8)]
+    targets = np.full((40, 22, 3), np.nan, np.float32)
+    goal = frames[-1][RIGHT_WRIST] + [0.05, 0.05, 0.05]
+    targets[30, RIGHT_WRIST] = goal
+    stream.set_joint_targets(targets, first_frame=0)
+    stream.set_objectives([HeightLimit("head", max_height=1.2, frames=(20, 30))])
+    out = np.stack(frames + [stream.step()[0] for _ in range(32)])
+    assert np.linalg.norm(out[30, RIGHT_WRIST] - goal) < 1e-3
+    assert "1 targets" in stream.control_summary(0)
+    with pytest.raises(ValueError, match="HeightLimit objectives only"):
+        stream.set_objectives([KeepOut(center=(0, 0), radius=1)])
+    late = targets[:5].copy()
+    late[2, 0] = [0.0, 0.9, 0.0]
+    with pytest.warns(UserWarning, match=r"frames \[2\] are already generated"):
+        stream.set_joint_targets(late, first_frame=0)
+
+
+def test_shipped_model_hits_a_keyframe_quickly(pretrained_generator) -> None:
+    import time
+
+    gen = pretrained_generator
+    gen.generate("a person walks forward", num_frames=100, seed=0)  # warm-up (text encoder)
+    base = gen.generate("a person walks forward", num_frames=100, seed=0)
+    targets = np.full((100, 22, 3), np.nan, np.float32)
+    targets[60, RIGHT_WRIST] = base.joints[60, RIGHT_WRIST] + [0.1, 0.2, 0.0]
+    t0 = time.perf_counter()
+    m = gen.generate("a person walks forward", num_frames=100, seed=0, joint_targets=targets)
+    assert time.perf_counter() - t0 < 5.0
+    assert np.linalg.norm(m.joints[60, RIGHT_WRIST] - targets[60, RIGHT_WRIST]) < 0.01
