@@ -216,11 +216,26 @@ class WaypointsVectorEnv(VectorEnv):
 
     def set_text(self, text: str, index: int | None = None) -> None:
         """Change the caption of one character (or all, index=None) mid-episode."""
+        self._check_index(index)
+        self._batch.set_text(text, index=None if index is None else int(index))  # the stream checks it
+
+    def set_joint_targets(
+        self, targets: np.ndarray | None, index: int | None = None, first_frame: int | None = None
+    ) -> None:
+        """Joint targets of one character (or all, index=None), as :meth:`WaypointsEnv.set_joint_targets`."""
+        self._check_index(index)
+        self._batch.stream.set_joint_targets(targets, index=index, first_frame=first_frame)
+
+    def set_objectives(self, objectives: Sequence[Any] | None, index: int | None = None) -> None:
+        """Height limits of one character (or all), as :meth:`WaypointsEnv.set_objectives`."""
+        self._check_index(index)
+        self._batch.stream.set_objectives(objectives, index=index)
+
+    def _check_index(self, index: int | None) -> None:
         if self._batch.stream is None:
             raise RuntimeError("call reset() first")
         if index is not None and not 0 <= int(index) < self.num_envs:
             raise IndexError(f"index {index} out of range for {self.num_envs} envs")
-        self._batch.set_text(text, index=None if index is None else int(index))  # the stream checks it
 
     def close(self, **kwargs: Any) -> None:
         if hasattr(self, "_batch"):  # Gymnasium closes on __del__, also after a failed __init__

@@ -368,6 +368,28 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self._require_episode()
         self._batch.set_route(0, validate_waypoints(waypoints))
 
+    def set_joint_targets(self, targets: np.ndarray | None, first_frame: int | None = None) -> None:
+        """Joint targets from now on (replacing earlier ones): (F, 22, 3) world metres, NaN where a
+        joint is free, row k = episode frame ``first_frame + k`` (default: the next frame).
+
+        The stream's rules (:meth:`motion_env.generation.streaming.MotionStream.set_joint_targets`):
+        a target set at least 10 frames (0.5 s) before its frame is met there exactly; frames
+        already emitted never change. :meth:`control_summary` says how well they were met so far.
+        """
+        self._require_episode()
+        self._batch.stream.set_joint_targets(targets, index=0, first_frame=first_frame)
+
+    def set_objectives(self, objectives: Sequence[Any] | None) -> None:
+        """Height limits from now on (:class:`motion_env.objectives.HeightLimit`, episode frames);
+        KeepOut / StayInside need a whole clip, or a planner (``policies.AStarPolicy``)."""
+        self._require_episode()
+        self._batch.stream.set_objectives(objectives, index=0)
+
+    def control_summary(self) -> str:
+        """How well the joint targets emitted so far were met (one line)."""
+        self._require_episode()
+        return self._batch.stream.control_summary(0)
+
     @property
     def text(self) -> str:
         self._require_episode()

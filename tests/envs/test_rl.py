@@ -219,3 +219,32 @@ def test_learning_curves_script_trains_evaluates_and_plots(tmp_path):
     assert script.main(script.Args(plot=True, out=str(tmp_path))).is_file()
     with pytest.raises(ValueError, match="name=value"):
         script.parse_env_kwargs("frames_per_step")
+
+
+def test_joint_targets_and_height_limits_reach_the_env_stream(gen):
+    from motion_env.motion.skeleton import JOINT_INDEX
+    from motion_env.objectives import HeightLimit, KeepOut
+
+    env = gym.make("motion_env/Waypoints-v0", generator=gen, frames_per_step=1).unwrapped
+    _, info = env.reset(seed=0, options={"waypoints": [[0.0, 3.0]]})
+    targets = np.full((30, 22, 3), np.nan, np.float32)
+    wrist = JOINT_INDEX["right_wrist"]
+    targets[15, wrist] = info["joints"][0] + np.array([0.3, 0.4, 0.2], np.float32)  # frame 16
+    env.set_joint_targets(targets)
+    env.set_objectives([HeightLimit(joint="head", max_height=1.2, frames=(30, 60))])
+    for _ in range(16):
+        _, _, _, _, info = env.step(np.array([0.0, 0.0, 1.0], np.float32))
+    assert info["frame"] == 17  # frame 16 was the last one emitted
+    np.testing.assert_allclose(info["joints"][wrist], targets[15, wrist], atol=0.01)
+    for _ in range(20):
+        _, _, _, _, info = env.step(np.array([0.0, 0.0, 1.0], np.float32))
+    assert info["joints"][JOINT_INDEX["head"], 1] <= 1.2 + 1e-3
+    assert "cm" in env.control_summary()
+    with pytest.raises(ValueError, match="HeightLimit"):
+        env.set_objectives([KeepOut(center=(0.0, 1.0), radius=0.3)])
+    envs = gym.make_vec("motion_env/Waypoints-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                        generator=gen)  # fmt: skip
+    envs.reset(seed=0)
+    envs.unwrapped.set_joint_targets(targets, index=1)
+    with pytest.raises(IndexError):
+        envs.unwrapped.set_objectives([], index=2)
