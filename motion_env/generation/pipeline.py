@@ -217,7 +217,8 @@ class Pipeline:
     def compose(
         self, features: np.ndarray, root_path: np.ndarray, num_frames: int
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Decoded features (n, 263) on a root path (>= n, 3) -> world joints and the root path used.
+        """Decoded features (n, 263) on a root path (>= n, 3) -> world joints and the root path used
+        (or B of each, (B, n, 263) and (B, m, 3), in one call: the stream's characters).
 
         The root path may run past the features (look-ahead frames): they shape the direction of
         travel at the last frames; the local pose is held over them and they are cut off.
@@ -226,10 +227,10 @@ class Pipeline:
             (num_frames, 22, 3) joints before foot cleanup, (num_frames, 3) root path whose heading
             is turned to the direction of travel.
         """
-        n = features.shape[0]
+        n, m = features.shape[-2], root_path.shape[-2]
         local = local_pose_from_features(features)
-        if root_path.shape[0] > n:
-            local = np.concatenate([local, np.repeat(local[-1:], root_path.shape[0] - n, axis=0)])
+        if m > n:
+            local = np.concatenate([local, np.repeat(local[..., -1:, :, :], m - n, axis=-3)], axis=-3)
         path = align_heading_to_travel(root_path)
-        joints = with_bone_lengths(recompose(local, path, face_travel=False)[:num_frames])
-        return joints, path[:num_frames]
+        joints = with_bone_lengths(recompose(local, path, face_travel=False)[..., :num_frames, :, :])
+        return joints, path[..., :num_frames, :]

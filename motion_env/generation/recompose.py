@@ -42,19 +42,19 @@ def local_pose_from_joints(joints: np.ndarray, root_path: np.ndarray | None = No
     """The body relative to its root path: pelvis XZ at the origin, heading turned to +Z.
 
     Args:
-        joints: (T, 22, 3) world joint positions.
+        joints: (T, 22, 3) world joint positions (or (B, T, 22, 3): B clips of one length).
         root_path: (T, 3) the path to factor out; default :func:`paths.root_path_from_joints`.
 
     Returns:
         (T, 22, 3) float32 local pose (joint heights unchanged; the pelvis is at x = z = 0).
     """
-    joints = check_joints(joints)
-    path = root_path_from_joints(joints) if root_path is None else validate_root_path(root_path)
-    if path.shape[0] != joints.shape[0]:
-        raise ValueError(f"root_path has {path.shape[0]} frames, joints {joints.shape[0]}")
+    joints = check_joints(joints, batched=True)
+    path = root_path_from_joints(joints) if root_path is None else validate_root_path(root_path, batched=True)
+    if path.shape[:-1] != joints.shape[:-2]:
+        raise ValueError(f"root_path has {path.shape[-2]} frames, joints {joints.shape[-3]}")
     local = joints.copy()
-    local[..., [0, 2]] -= path[:, None, :2].astype(np.float64)
-    return rotate_y(local, -path[:, None, 2].astype(np.float64)).astype(np.float32)
+    local[..., [0, 2]] -= path[..., None, :2].astype(np.float64)
+    return rotate_y(local, -path[..., None, 2].astype(np.float64)).astype(np.float32)
 
 
 def local_pose_from_features(features: np.ndarray) -> np.ndarray:
@@ -70,12 +70,12 @@ def local_pose_from_features(features: np.ndarray) -> np.ndarray:
 
 
 def _travel(root_path: np.ndarray, sigma: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
-    """Speed (m/s) and direction of travel (heading convention) per frame of a root path."""
-    vel = np.gradient(root_path[:, :2].astype(np.float64), axis=0) * FPS if len(root_path) > 1 else None
-    if vel is None:
-        return np.zeros(1), root_path[:, 2].astype(np.float64)
-    vel = gaussian_filter1d(vel, sigma, axis=0, mode="nearest")
-    return np.linalg.norm(vel, axis=1), np.arctan2(vel[:, 0], vel[:, 1])
+    """Speed (m/s) and direction of travel (heading convention) per frame of a root path (..., T, 3)."""
+    if root_path.shape[-2] < 2:
+        return np.zeros(root_path.shape[:-1]), root_path[..., 2].astype(np.float64)
+    vel = np.gradient(root_path[..., :2].astype(np.float64), axis=-2) * FPS
+    vel = gaussian_filter1d(vel, sigma, axis=-2, mode="nearest")
+    return np.linalg.norm(vel, axis=-1), np.arctan2(vel[..., 0], vel[..., 1])
 
 
 def align_heading_to_travel(
@@ -90,17 +90,17 @@ def align_heading_to_travel(
     kept. Still frames keep their heading (no spin on the spot).
 
     Returns:
-        (T, 3) float32 root path with the new (unwrapped) heading.
+        (T, 3) float32 root path with the new (unwrapped) heading ((B, T, 3) for B paths).
     """
-    path = validate_root_path(root_path).astype(np.float64)
+    path = validate_root_path(root_path, batched=True).astype(np.float64)
     speed, travel = _travel(path)
-    offset = wrap_angle(travel - path[:, 2])
+    offset = wrap_angle(travel - path[..., 2])
     lim = np.deg2rad(max_offset_deg)
     w_speed = np.clip((speed - min_speed) / max(full_speed - min_speed, 1e-6), 0.0, 1.0)
     w_angle = np.clip((1.5 * lim - np.abs(offset)) / lim, 0.0, 1.0)
-    correction = gaussian_filter1d(w_speed * w_angle * offset, 1.0, mode="nearest")
+    correction = gaussian_filter1d(w_speed * w_angle * offset, 1.0, axis=-1, mode="nearest")
     out = path.copy()
-    out[:, 2] = path[:, 2] + correction
+    out[..., 2] = path[..., 2] + correction
     return out.astype(np.float32)
 
 
@@ -119,15 +119,15 @@ def recompose(local_pose: np.ndarray, root_path: np.ndarray, face_travel: bool =
         (T, 22, 3) float32 world joints: pelvis XZ exactly on the path, legs, height and limbs
         from the local pose.
     """
-    local = check_joints(local_pose, "local_pose").copy()
-    path = validate_root_path(root_path)
-    if path.shape[0] != local.shape[0]:
-        raise ValueError(f"root_path has {path.shape[0]} frames, local_pose {local.shape[0]}")
+    local = check_joints(local_pose, "local_pose", batched=True).copy()
+    path = validate_root_path(root_path, batched=True)
+    if path.shape[:-1] != local.shape[:-2]:
+        raise ValueError(f"root_path has {path.shape[-2]} frames, local_pose {local.shape[-3]}")
     if face_travel:
         path = align_heading_to_travel(path)
-    local[..., [0, 2]] -= local[:, :1, [0, 2]]
-    joints = rotate_y(local, path[:, None, 2].astype(np.float64))
-    joints[..., [0, 2]] += path[:, None, :2].astype(np.float64)
+    local[..., [0, 2]] -= local[..., :1, [0, 2]]
+    joints = rotate_y(local, path[..., None, 2].astype(np.float64))
+    joints[..., [0, 2]] += path[..., None, :2].astype(np.float64)
     return joints.astype(np.float32)
 
 

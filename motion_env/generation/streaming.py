@@ -449,16 +449,25 @@ class MotionStream:
         # Decode the newest token of each character (the decoder keeps each one's history).
         body = g.decode_next(self._decoder, tokens, rows)
 
+        # The body on each path, over a window of recent frames: one batched compose per window
+        # length (every character once past its first two seconds).
+        window = np.minimum(first + rate, self._window)  # frames begin..f+rate-1, begin >= 0
+        composed: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        for length in np.unique(window):
+            sel = np.nonzero(window == length)[0]
+            feats, roots = [], []
+            for n in sel:
+                i, f = rows[n], int(first[n])
+                self._features[i, np.arange(f, f + rate) % ring] = body[n]
+                span = np.arange(f + rate - length, f + rate)
+                feats.append(self._features[i, span % ring])
+                roots.append(np.concatenate([self._snapped[i, span[:-rate] % ring], ahead[n]]))
+            joints, path = g.compose(np.stack(feats), np.stack(roots), int(length))
+            composed.update({int(n): (joints[k], path[k]) for k, n in enumerate(sel)})
         for n, i in enumerate(rows):
             f = int(first[n])
-            frames = np.arange(f, f + rate)
-            self._features[i, frames % ring] = body[n]
-            begin = max(0, f + rate - self._window)
-            past = np.arange(begin, f)
-            feats = self._features[i, np.arange(begin, f + rate) % ring]
-            root = np.concatenate([self._snapped[i, past % ring], ahead[n]])  # frames begin..f+horizon
-            joints, path = g.compose(feats, root, f + rate - begin)
-            self._snapped[i, frames % ring] = ahead[n][:rate]
+            joints, path = composed[n]
+            self._snapped[i, np.arange(f, f + rate) % ring] = ahead[n][:rate]
             self._buffer[i] = self._feet.apply(int(i), joints[-rate:], body[n][:, FOOT_CONTACT])
             if self._control.active(int(i)):
                 self._buffer[i] = self._control.apply(int(i), f, self._buffer[i], body[n][:, FOOT_CONTACT])

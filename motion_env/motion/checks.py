@@ -22,14 +22,16 @@ def check_last(x: np.ndarray, size: int, name: str) -> np.ndarray:
     return x
 
 
-def check_joints(joints: np.ndarray, name: str = "joints", min_frames: int = 1) -> np.ndarray:
-    """Validate a (T, 22, 3) array and return it as float64."""
+def check_joints(
+    joints: np.ndarray, name: str = "joints", min_frames: int = 1, batched: bool = False
+) -> np.ndarray:
+    """Validate a (T, 22, 3) array (with `batched`, also (B, T, 22, 3)) and return it as float64."""
     joints = np.asarray(joints)
-    if joints.ndim != 3 or joints.shape[1:] != (NUM_JOINTS, 3) or joints.shape[0] < min_frames:
-        raise ValueError(
-            f"{name} must have shape (T, {NUM_JOINTS}, 3) with T >= {min_frames}, got {joints.shape}"
-        )
-    check_finite(joints, name, "frames")
+    ndim_ok = joints.ndim == 3 or (batched and joints.ndim == 4)
+    if not ndim_ok or joints.shape[-2:] != (NUM_JOINTS, 3) or joints.shape[-3] < min_frames:
+        shape = f"(T, {NUM_JOINTS}, 3)" + (f" or (B, T, {NUM_JOINTS}, 3)" if batched else "")
+        raise ValueError(f"{name} must have shape {shape} with T >= {min_frames}, got {joints.shape}")
+    check_finite(joints.reshape(-1, NUM_JOINTS, 3) if batched else joints, name, "frames")
     return joints.astype(np.float64)
 
 

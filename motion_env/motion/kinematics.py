@@ -151,11 +151,11 @@ def bone_offsets(lengths: np.ndarray = BONE_LENGTHS) -> np.ndarray:
 def _bone_directions(joints: np.ndarray) -> np.ndarray:
     """Unit direction of each bone (T, 22, 3); a zero-length bone keeps its rest direction."""
     parents = np.array([max(p, 0) for p in PARENTS])
-    vec = joints - joints[:, parents]
+    vec = joints - joints[..., parents, :]
     norm = np.linalg.norm(vec, axis=-1, keepdims=True)
     rest = np.broadcast_to(RAW_OFFSETS.astype(np.float64), vec.shape)
     dirs = np.where(norm > 1e-9, vec / np.maximum(norm, 1e-9), rest)
-    dirs[:, 0] = 0.0
+    dirs[..., 0, :] = 0.0
     return dirs
 
 
@@ -253,12 +253,12 @@ def _check_lengths(lengths: np.ndarray) -> np.ndarray:
 
 
 def _rebuild(joints: np.ndarray, pelvis: np.ndarray, lengths: np.ndarray) -> np.ndarray:
-    """The poses of `joints` rebuilt from `pelvis` (T, 3) outward with bone `lengths`."""
+    """The poses of `joints` (..., 22, 3) rebuilt from `pelvis` (..., 3) outward with bone `lengths`."""
     dirs = _bone_directions(joints)
     out = np.zeros_like(joints)
-    out[:, 0] = pelvis
+    out[..., 0, :] = pelvis
     for j in range(1, NUM_JOINTS):
-        out[:, j] = out[:, PARENTS[j]] + dirs[:, j] * lengths[j]
+        out[..., j, :] = out[..., PARENTS[j], :] + dirs[..., j, :] * lengths[j]
     return out
 
 
@@ -270,12 +270,12 @@ def with_bone_lengths(joints: np.ndarray, lengths: np.ndarray = BONE_LENGTHS) ->
     shrink a little from frame to frame (a leg 9 cm short puts a rigid body's foot 9 cm into the
     floor); on fixed lengths every frame is a pose of one body. Per frame, so streaming-safe.
 
-    joints: (T, 22, 3); lengths: (22,). Returns (T, 22, 3) float32.
+    joints: (T, 22, 3) (or (B, T, 22, 3): B clips); lengths: (22,). Returns float32 of the same shape.
     """
-    joints = check_joints(joints)
-    out = _rebuild(joints, joints[:, 0], _check_lengths(lengths))
+    joints = check_joints(joints, batched=True)
+    out = _rebuild(joints, joints[..., 0, :], _check_lengths(lengths))
     feet = list(FOOT_JOINTS)
-    out[..., 1] += (joints[:, feet, 1].min(axis=1) - out[:, feet, 1].min(axis=1))[:, None]
+    out[..., 1] += (joints[..., feet, 1].min(axis=-1) - out[..., feet, 1].min(axis=-1))[..., None]
     return out.astype(np.float32)
 
 

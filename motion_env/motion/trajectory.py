@@ -52,21 +52,21 @@ def root_path_from_joints(joints: np.ndarray, smooth_sigma: float = HEADING_SMOO
     """The root path of a motion.
 
     Args:
-        joints: (T, 22, 3) world joint positions.
+        joints: (T, 22, 3) world joint positions (or (B, T, 22, 3): B paths).
         smooth_sigma: Gaussian sigma (frames) applied to the unwrapped heading; 0 keeps the raw
             per-frame facing.
 
     Returns:
-        (T, 3) float32: pelvis x, z and the unwrapped, smoothed heading from the hips and
+        (T, 3) (or (B, T, 3)) float32: pelvis x, z and the unwrapped, smoothed heading from the hips and
         shoulders (:func:`motion_env.motion.heading_from_joints`).
     """
     joints = np.asarray(joints, dtype=np.float32)
-    if joints.ndim != 3 or joints.shape[1:] != (NUM_JOINTS, 3) or joints.shape[0] < 1:
+    if joints.ndim not in (3, 4) or joints.shape[-2:] != (NUM_JOINTS, 3) or joints.shape[-3] < 1:
         raise ValueError(f"joints must have shape (T, {NUM_JOINTS}, 3) with T >= 1, got {joints.shape}")
-    theta = np.unwrap(np.asarray(heading_from_joints(joints), dtype=np.float64))
+    theta = np.unwrap(np.asarray(heading_from_joints(joints), dtype=np.float64), axis=-1)
     if smooth_sigma > 0:
-        theta = gaussian_filter1d(theta, smooth_sigma, mode="nearest")
-    return np.stack([joints[:, 0, 0], joints[:, 0, 2], theta.astype(np.float32)], axis=-1)
+        theta = gaussian_filter1d(theta, smooth_sigma, axis=-1, mode="nearest")
+    return np.stack([joints[..., 0, 0], joints[..., 0, 2], theta.astype(np.float32)], axis=-1)
 
 
 def gait_free_path(root_path: np.ndarray, sigma: float = GAIT_SMOOTH_SIGMA) -> np.ndarray:
@@ -88,12 +88,15 @@ def gait_free_path(root_path: np.ndarray, sigma: float = GAIT_SMOOTH_SIGMA) -> n
     return path.astype(np.float32)
 
 
-def validate_root_path(root_path: np.ndarray, name: str = "root_path") -> np.ndarray:
-    """Check a root path and return it as (T, 3) float32 (raises ValueError naming the problem)."""
+def validate_root_path(root_path: np.ndarray, name: str = "root_path", batched: bool = False) -> np.ndarray:
+    """Check a root path and return it as (T, 3) float32 (with `batched`, also (B, T, 3) paths;
+    raises ValueError naming the problem)."""
     path = np.asarray(root_path, dtype=np.float32)
-    if path.ndim != 2 or path.shape[1] != 3 or path.shape[0] < 1:
-        raise ValueError(f"{name} must have shape (T, 3) (x, z, heading) with T >= 1, got {path.shape}")
-    check_finite(path, name, "frames")
+    ndim_ok = path.ndim == 2 or (batched and path.ndim == 3)
+    if not ndim_ok or path.shape[-1] != 3 or path.shape[-2] < 1:
+        shape = "(T, 3)" + (" or (B, T, 3)" if batched else "")
+        raise ValueError(f"{name} must have shape {shape} (x, z, heading) with T >= 1, got {path.shape}")
+    check_finite(path.reshape(-1, 3), name, "frames")
     return path
 
 

@@ -37,6 +37,18 @@ def test_recompose_round_trips_real_motion(humanml3d_sample) -> None:
     )
 
 
+def test_compose_of_a_batch_equals_composing_each_clip(humanml3d_sample, random_generator) -> None:
+    _, features = humanml3d_sample
+    feats = np.stack([features[:40], features[10:50], features[20:60]])  # three clips of 40 frames
+    paths = np.stack([_curve(60), _curve(60)[::-1].copy(), _curve(60) + 0.5])  # 20 frames of look-ahead
+    joints, path = random_generator.pipeline.compose(feats, paths, 40)
+    assert joints.shape == (3, 40, 22, 3) and path.shape == (3, 40, 3)
+    for b in range(3):
+        one_joints, one_path = random_generator.pipeline.compose(feats[b], paths[b], 40)
+        np.testing.assert_allclose(joints[b], one_joints, atol=1e-6)
+        np.testing.assert_allclose(path[b], one_path, atol=1e-6)
+
+
 def test_recompose_puts_the_pelvis_on_the_path_facing_travel(humanml3d_sample) -> None:
     joints, _ = humanml3d_sample
     # A local pose whose own facing is exactly +Z in every frame (factor out the raw heading).
