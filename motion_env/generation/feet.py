@@ -92,38 +92,56 @@ class FootPinner:
         contacts: the decoded features' foot contacts (left ankle, left toe, right ankle, right
         toe; > 0.5 = in contact).
         """
-        out = joints.astype(np.float64)
+        return self.apply_rows(np.array([i]), np.asarray(joints)[None], np.asarray(contacts)[None])[0]
+
+    def apply_rows(self, rows: np.ndarray, joints: np.ndarray, contacts: np.ndarray) -> np.ndarray:
+        """The next frames of characters `rows` at once: (R, n, 22, 3) joints and (R, n, 4)
+        contacts -> (R, n, 22, 3); the same as :meth:`apply` row by row."""
+        rows = np.asarray(rows, dtype=np.int64)
+        out = np.asarray(joints).astype(np.float64)
         flags = np.asarray(contacts) > 0.5
+        r = np.arange(len(rows))
         for leg, (hip, knee, ankle, toe) in enumerate(LEGS):
-            offsets = np.zeros((len(out), 2))
-            for t in range(len(out)):
+            offsets = np.zeros(out.shape[:2] + (2,))
+            for t in range(out.shape[1]):
                 # The ankle's flag wins; the toe alone is pinned while the heel lifts.
-                kind = 0 if flags[t, 2 * leg] else 1 if flags[t, 2 * leg + 1] else None
-                for other in {0, 1} - {kind}:
-                    self.pins[i, leg, other] = np.nan
-                if kind is None:
-                    self.since[i, leg] += 1
-                    offset = self.released[i, leg] * max(0.0, 1.0 - self.since[i, leg] / (FOOT_BLEND + 1))
-                else:
-                    xz = out[t, (ankle, toe)[kind], [0, 2]]
-                    if np.isnan(self.pins[i, leg, kind, 0]):
-                        self.pins[i, leg, kind] = xz + self.offset[i, leg]  # where it is shown now
-                    offset = self.pins[i, leg, kind] - xz
-                    norm = np.linalg.norm(offset)
-                    if norm > FOOT_MAX_OFFSET:
-                        offset *= FOOT_MAX_OFFSET / norm
-                        self.pins[i, leg, kind] = xz + offset  # the pin slides with the foot
-                    self.released[i, leg], self.since[i, leg] = offset, 0
-                self.offset[i, leg] = offsets[t] = offset
-            moved = np.nonzero(offsets.any(axis=1))[0]  # frames left alone keep their exact pose
-            if not len(moved):
+                kind = np.where(flags[:, t, 2 * leg], 0, np.where(flags[:, t, 2 * leg + 1], 1, -1))
+                pins = self.pins[rows, leg]  # (R, 2 kinds, 2)
+                pins[kind != 0, 0] = np.nan
+                pins[kind != 1, 1] = np.nan
+                free = kind < 0
+                since = self.since[rows, leg] + free
+                fade = np.maximum(0.0, 1.0 - since / (FOOT_BLEND + 1))[:, None]
+                offset = self.released[rows, leg] * fade
+                held = np.nonzero(~free)[0]
+                if len(held):
+                    k = kind[held]
+                    xz = out[held, t][np.arange(len(held)), np.where(k == 0, ankle, toe)][:, [0, 2]]
+                    pin = pins[held, k]
+                    fresh = np.isnan(pin[:, 0])
+                    pin[fresh] = xz[fresh] + self.offset[rows[held], leg][fresh]  # where it is shown now
+                    moved = pin - xz
+                    norm = np.linalg.norm(moved, axis=-1)
+                    far = norm > FOOT_MAX_OFFSET
+                    moved[far] *= (FOOT_MAX_OFFSET / norm[far])[:, None]
+                    pin[far] = xz[far] + moved[far]  # the pin slides with the foot
+                    pins[held, k] = pin
+                    offset[held] = moved
+                    self.released[rows[held], leg] = moved
+                    since[held] = 0
+                self.pins[rows, leg] = pins
+                self.since[rows, leg] = since
+                self.offset[rows, leg] = offsets[r, t] = offset
+            moved = np.nonzero(offsets.any(axis=-1))  # frames left alone keep their exact pose
+            if not len(moved[0]):
                 continue
-            goal = out[moved, ankle].copy()
+            goal = out[moved][:, ankle].copy()
             goal[:, [0, 2]] += offsets[moved]
-            toes = out[moved, toe] - out[moved, ankle]
+            frames = out[moved]
+            toes = frames[:, toe] - frames[:, ankle]
             toes[:, 1] = 0.0  # a knee points the way the foot does
-            leg = out[moved, hip], out[moved, knee], out[moved, ankle]
-            new_knee, new_ankle = two_bone_ik(*leg, goal, toes)
-            out[moved, toe] += new_ankle - out[moved, ankle]
-            out[moved, knee], out[moved, ankle] = new_knee, new_ankle
+            new_knee, new_ankle = two_bone_ik(frames[:, hip], frames[:, knee], frames[:, ankle], goal, toes)
+            frames[:, toe] += new_ankle - frames[:, ankle]
+            frames[:, knee], frames[:, ankle] = new_knee, new_ankle
+            out[moved] = frames
         return out.astype(np.float32)

@@ -464,11 +464,13 @@ class MotionStream:
                 roots.append(np.concatenate([self._snapped[i, span[:-rate] % ring], ahead[n]]))
             joints, path = g.compose(np.stack(feats), np.stack(roots), int(length))
             composed.update({int(n): (joints[k], path[k]) for k, n in enumerate(sel)})
+        new = np.stack([composed[n][0][-rate:] for n in range(len(rows))])
+        pinned = self._feet.apply_rows(rows, new, body[:, :, FOOT_CONTACT])
         for n, i in enumerate(rows):
             f = int(first[n])
-            joints, path = composed[n]
+            path = composed[n][1]
             self._snapped[i, np.arange(f, f + rate) % ring] = ahead[n][:rate]
-            self._buffer[i] = self._feet.apply(int(i), joints[-rate:], body[n][:, FOOT_CONTACT])
+            self._buffer[i] = pinned[n]
             if self._control.active(int(i)):
                 self._buffer[i] = self._control.apply(int(i), f, self._buffer[i], body[n][:, FOOT_CONTACT])
             self._buffer_root[i] = path[-rate:]
