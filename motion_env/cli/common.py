@@ -15,7 +15,7 @@ import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 __all__ = [
     "USER_ERRORS",
@@ -164,3 +164,28 @@ def set_threads(threads: int) -> None:
     import torch
 
     torch.set_num_threads(int(threads))
+
+
+def check_model_choice(args: argparse.Namespace) -> None:
+    """``--model`` and ``--random-model`` (commands that load a generator): one at most, and a
+    weights directory that exists; checked before anything heavy is imported."""
+    if args.random_model and args.model is not None:
+        raise CommandError("give either --model or --random-model, not both")
+    if args.model is not None and not Path(args.model).is_dir():
+        raise FileNotFoundError(f"--model {args.model}: no generator weights directory there")
+
+
+def load_generator(args: argparse.Namespace, captions: list[str]) -> Any:
+    """The generator of ``--model`` / ``--random-model`` on ``--device`` with ``--threads``, its text
+    encoder loaded and `captions` encoded (so the first frame is not a pause of seconds)."""
+    with paused_gc():
+        check_device(args.device)  # imports torch
+        set_threads(args.threads)
+        from motion_env.generation.generator import MotionGenerator
+
+        if args.random_model:
+            gen = MotionGenerator.random(seed=args.seed, device=args.device)
+        else:
+            gen = MotionGenerator.from_pretrained(args.model, device=args.device)
+        gen.encode_text(sorted(set(captions)))  # the text encoder loads here (unless cached)
+    return gen

@@ -9,16 +9,16 @@ needed), then the device; only then does it load the weights.
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from motion_env.cli.common import (
     CommandError,
     add_overwrite,
     add_threads,
     check_device,
+    check_model_choice,
     check_new_file,
     check_suffix,
-    paused_gc,
+    load_generator,
     set_threads,
 )
 
@@ -98,23 +98,11 @@ def _check_request(args: argparse.Namespace) -> list[list[float]] | None:
 
 
 def run_generate(args: argparse.Namespace) -> int:
-    if args.random_model and args.model is not None:
-        raise CommandError("give either --model or --random-model, not both")
+    check_model_choice(args)
     _check_outputs(args)
     waypoints = _check_request(args)
     start = _parse_start(args.start)
-    if args.model is not None and not Path(args.model).is_dir():
-        raise FileNotFoundError(f"--model {args.model}: no generator weights directory there")
-    with paused_gc():
-        check_device(args.device)  # imports torch
-        set_threads(args.threads)
-        from motion_env.generation.generator import MotionGenerator
-
-        if args.random_model:
-            gen = MotionGenerator.random(seed=args.seed, device=args.device)
-        else:
-            gen = MotionGenerator.from_pretrained(args.model, device=args.device)
-        gen.encode_text([args.text])  # the text encoder loads here (unless the caption is cached)
+    gen = load_generator(args, [args.text])
     motion = gen.generate(
         args.text, waypoints, num_frames=args.frames, seed=args.seed, start=start, infeasible=args.infeasible
     )

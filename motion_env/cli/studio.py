@@ -12,9 +12,8 @@ import signal
 import socket
 import sys
 import threading
-from pathlib import Path
 
-from motion_env.cli.common import CommandError, add_threads, check_device, paused_gc, set_threads
+from motion_env.cli.common import CommandError, add_threads, check_model_choice, load_generator
 
 __all__ = ["add_studio", "run_studio"]
 
@@ -103,26 +102,15 @@ def run_studio(args: argparse.Namespace) -> int:
         raise CommandError(
             'the studio needs the viser package: pip install -c constraints.txt "motion-env[studio]"'
         )
-    if args.random_model and args.model is not None:
-        raise CommandError("give either --model or --random-model, not both")
-    if args.model is not None and not Path(args.model).is_dir():
-        raise FileNotFoundError(f"--model {args.model}: no generator weights directory there")
+    check_model_choice(args)
     captions = _captions(args)
     _check_port(args.host, args.port)
-    with paused_gc():
-        check_device(args.device)  # imports torch
-        set_threads(args.threads)
-        from motion_env.generation.generator import MotionGenerator
-        from motion_env.studio.server import Studio
+    gen = load_generator(args, captions)
+    # New captions typed in the page are encoded while it plays: load the encoder now (the
+    # captions above may have come from the cache), so that the first one is not a pause of seconds.
+    _ = gen.pipeline.text_encoder
+    from motion_env.studio.server import Studio
 
-        if args.random_model:
-            gen = MotionGenerator.random(seed=args.seed, device=args.device)
-        else:
-            gen = MotionGenerator.from_pretrained(args.model, device=args.device)
-        gen.encode_text(sorted(set(captions)))  # the text encoder loads here (unless cached)
-        # New captions typed in the page are encoded while it plays: load the encoder now, so that
-        # the first one is not a pause of seconds.
-        _ = gen.pipeline.text_encoder
     # `kill` ends the studio as Ctrl-C does: the page closes, the port is freed, exit code 130.
     # (Handlers can only be set from the main thread; tests run commands from others.)
     on_main = threading.current_thread() is threading.main_thread()

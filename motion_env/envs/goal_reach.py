@@ -67,9 +67,7 @@ class GoalReachEnv(WaypointsEnv):
     reset_options: tuple[str, ...] = ("text", "goal", "start")
 
     def __init__(self, *args: Any, reward_type: str = "sparse", **kwargs: Any) -> None:
-        if reward_type not in REWARD_TYPES:
-            raise ValueError(f"reward_type must be one of {REWARD_TYPES}, got {reward_type!r}")
-        self.reward_type = reward_type
+        self.reward_type = check_reward_type(reward_type)
         super().__init__(*args, **kwargs)
         self.observation_space = goal_observation_space()
 
@@ -114,9 +112,7 @@ class GoalReachVectorEnv(WaypointsVectorEnv):
     reset_options: tuple[str, ...] = ("text", "goal", "start")
 
     def __init__(self, *args: Any, reward_type: str = "sparse", **kwargs: Any) -> None:
-        if reward_type not in REWARD_TYPES:
-            raise ValueError(f"reward_type must be one of {REWARD_TYPES}, got {reward_type!r}")
-        self.reward_type = reward_type
+        self.reward_type = check_reward_type(reward_type)
         super().__init__(*args, **kwargs)
 
     def compute_reward(
@@ -188,6 +184,12 @@ def goal_reward(achieved_goal: Any, desired_goal: Any, reward_type: str, radius:
 def goal_terms(batch: CharacterBatch, reward_type: str) -> dict[str, np.ndarray]:
     reward = goal_reward(batch.pos, batch.route_target, reward_type, batch.config.arrive_radius)
     return {"reward_goal": np.atleast_1d(reward)}
+
+
+def check_reward_type(reward_type: str) -> str:
+    if reward_type not in REWARD_TYPES:
+        raise ValueError(f"reward_type must be one of {REWARD_TYPES}, got {reward_type!r}")
+    return reward_type
 
 
 def check_goal(goal: Any) -> np.ndarray:
