@@ -310,3 +310,29 @@ def test_bad_targets_in_a_batch_name_the_character(gen) -> None:
         gen.generate_batch(["a", "b"], num_frames=120, joint_targets=[None, _with(3, 0, [np.inf, 0, 0])])
     with pytest.raises(ValueError, match="unknown joint name 'hand'"):
         motion_env.objectives.HeightLimit("hand", max_height=1.0)
+
+
+@pytest.mark.parametrize(
+    ("text", "why"),
+    [
+        ("a person walks forward " * 450, "characters long"),  # 10 kB: the encoder reads the start
+        ("🏃💨", "no letters"),
+        ("一个人在走路", "not in the Latin script"),
+        ("une personne court très vite", "French"),
+        ("a person walks und dann läuft sie sehr schnell", "German"),
+    ],
+)
+def test_odd_captions_warn_once_and_still_move(pretrained_generator, text: str, why: str) -> None:
+    """Very long captions, emoji, other scripts, other and mixed languages: a warning naming the
+    nearest known actions (once per caption), then a motion along the route, never a crash."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        clips = [pretrained_generator.generate(text, ROUTE, num_frames=100, seed=s) for s in (0, 1)]
+    messages = [
+        str(w.message) for w in caught if issubclass(w.category, UserWarning) and "caption" in str(w.message)
+    ]
+    assert len(messages) == 1 and why in messages[0] and "nearest known actions" in messages[0], messages
+    assert pretrained_generator.caption_warning(text) == messages[0]
+    for clip in clips:
+        root = clip.joints[:, 0, [0, 2]]
+        assert np.isfinite(clip.joints).all() and np.linalg.norm(root[-1] - root[0]) > 2.0  # route: 2.8 m

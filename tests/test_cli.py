@@ -182,3 +182,18 @@ def test_train_vqvae_and_gpt_then_generate_from_the_checkpoints(tmp_path, capsys
     assert gen.training_info["vqvae"]["step"] == 2 and gen.training_info["gpt"]["step"] == 2
     m = gen.generate("a person walks fast", waypoints=[[0.0, 1.0, 20]], num_frames=30, seed=0)
     assert m.joints.shape == (30, 22, 3) and np.isfinite(m.joints).all()
+
+
+def test_captions_lists_the_vocabulary_and_checks_a_caption(capsys) -> None:
+    assert main(["captions", "--examples", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "actions (training clips" in out and "walk-turn-left" in out and "a person walks" in out
+    assert "styles (training clips" in out and "exhausted (also tired)" in out
+    assert main(["captions", "--check", "a person jogs along happily"]) == 0
+    out = capsys.readouterr().out
+    assert "nearest actions: run" in out and "no warning" in out
+    assert main(["captions", "--check", "une personne court très vite", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert "French" in report["warning"] and report["similarity"] < report["far_below"]
+    assert main(["captions", "--check", "  "]) == 2
+    assert "--check is empty" in capsys.readouterr().err

@@ -3,7 +3,8 @@
 Each subcommand has an ``add_<name>`` function that declares its arguments and a ``run_<name>``
 function that calls the library: :mod:`.generate` (``generate``, ``bench``), :mod:`.files`
 (``show``, ``replay``), :mod:`.offline` (``data build``, ``train``), :mod:`.export` (``export``),
-:mod:`.retarget` (``retarget``), :mod:`.studio` (``studio``), :mod:`.evaluate` (``eval control``);
+:mod:`.retarget` (``retarget``), :mod:`.studio` (``studio``), :mod:`.evaluate` (``eval control``),
+:mod:`.captions` (``captions``);
 :mod:`.common` holds what they share. The heavy modules are imported only by the command that
 needs them, after its cheap checks, so `motion-env --help` and a typo are answered at once.
 
@@ -26,6 +27,7 @@ import gc
 import sys
 from collections.abc import Sequence
 
+from motion_env.cli.captions import add_captions
 from motion_env.cli.common import USER_ERRORS, CommandParser, one_line, reported_warnings
 from motion_env.cli.evaluate import add_eval
 from motion_env.cli.export import add_export
@@ -52,7 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     commands = (
         add_show, add_data, add_train, add_generate, add_bench, add_eval, add_replay, add_export,
-        add_retarget,
+        add_retarget, add_captions,
     )  # fmt: skip
     for add in (*commands, add_studio):
         add(sub)

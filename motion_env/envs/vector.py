@@ -267,6 +267,9 @@ class WaypointsVectorEnv(VectorEnv):
             "joints": batch.joints.copy(),
             "step_joints": batch.step_joints(),
             "text": np.array(batch.texts, dtype=object),
+            "caption_warning": np.array(
+                [self.generator.caption_warning(t) for t in batch.texts], dtype=object
+            ),
             "frame": np.asarray(batch.stream.frame_index, dtype=np.int64).copy(),
             "route_length": batch.route_count.copy(),
             "route_index": batch.k.copy(),

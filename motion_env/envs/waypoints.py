@@ -201,6 +201,8 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     ``info`` holds ``joints`` (22, 3) world positions of the last frame emitted; ``step_joints``
     (F, 22, 3) all the frames the step emitted (F = ``frames_per_step``; after a reset the first
     frame F times, so every entry keeps one shape and vector envs can stack it); ``text``;
+    ``caption_warning`` (str, '' for none: the warning the caption got, once, as a ``UserWarning``,
+    when it was not English, too long or far from every caption the model knows);
     ``frame`` (frames emitted so far); ``route_length`` K (the route itself, (K, 3) with times,
     is :attr:`route`); ``route_index`` k; ``route_target`` and ``command`` (world x, z); ``following_route``;
     ``distance`` (pelvis to route target, m); ``is_success`` (the last waypoint reached); the
@@ -439,6 +441,7 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             "joints": batch.joints[0].copy(),
             "step_joints": batch.step_joints()[0],
             "text": batch.texts[0],
+            "caption_warning": self.generator.caption_warning(batch.texts[0]),
             "frame": int(batch.stream.frame_index[0]),
             "route_length": len(batch.routes[0]),
             "route_index": int(batch.k[0]),

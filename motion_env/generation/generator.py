@@ -30,6 +30,7 @@ from motion_env.generation.request import (
     BatchRequest,
     check_batch_request,
     check_request,
+    check_text,
     check_texts,
 )
 from motion_env.models.checkpoint import check_text_encoder, load_checkpoint, save_checkpoint
@@ -40,6 +41,7 @@ from motion_env.models.sampling import SamplingConfig
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
 from motion_env.motion.skeleton import FEATURE_DIM, FOOT_CONTACT, FPS, NUM_JOINTS
 from motion_env.motion.types import Motion
+from motion_env.text.vocabulary import load_vocabulary
 
 if TYPE_CHECKING:
     from motion_env.generation.streaming import MotionStream
@@ -195,6 +197,7 @@ class MotionGenerator:
         )  # fmt: skip
         for kind, ckpt in (("vqvae", vq_ckpt), ("gpt", gpt_ckpt), ("controller", ctrl_ckpt)):
             gen.training_info[kind] = _training_record(ckpt)
+        gen.pipeline.vocabulary = load_vocabulary(folder)
         return gen
 
     @classmethod
@@ -290,6 +293,12 @@ class MotionGenerator:
     def encode_text(self, texts: Sequence[str]) -> torch.Tensor:
         """Captions -> (N, text_dim) float32 embeddings on the generator's device."""
         return self.pipeline.encode_text(check_texts(texts))
+
+    def caption_warning(self, text: str) -> str:
+        """The warning `text` gets ('' for none): not English, too long, or far from every caption
+        the model was trained on (:mod:`motion_env.text.vocabulary`). A caption not generated from
+        yet is embedded first, which warns as generating from it would; then the answer is cached."""
+        return self.pipeline.caption_warning(check_text(text))
 
     def num_parameters(self) -> dict[str, int]:
         """Parameter count of each model."""

@@ -3,6 +3,8 @@
 A request, already checked (:mod:`motion_env.generation.request`), goes through:
 
 1. **text**: the caption becomes an embedding (:meth:`Pipeline.encode_text`, encoder loaded lazily);
+   a caption that is not English, too long or far from what the models know gets a warning, once
+   (:func:`motion_env.text.vocabulary.caption_warning`, :meth:`Pipeline.caption_warning`);
 2. **root path**: the route is planned (:mod:`motion_env.generation.route`: times for untimed
    waypoints before a timed one, long untimed legs split), then the path controller
    (:mod:`motion_env.models.controller`) rolls out x, z, heading frame by frame, closed loop, from
@@ -28,6 +30,7 @@ every stage once over the whole clip) and :class:`~motion_env.generation.streami
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any
@@ -50,6 +53,7 @@ from motion_env.models.path_features import LOOKAHEAD_FRAMES, token_path_feature
 from motion_env.models.sampling import SamplingConfig
 from motion_env.models.vqvae import VQVAE, DecoderStream
 from motion_env.motion.kinematics import with_bone_lengths
+from motion_env.text.vocabulary import Vocabulary, caption_warning
 
 __all__ = ["CONTROLLER_STREAM", "TOKEN_STREAM", "Pipeline", "row_generator"]
 
@@ -82,6 +86,11 @@ class Pipeline:
             (None): loaded lazily by name (``text_encoder_name``) on the first caption.
         text_encoder_name: the encoder the models were trained with ("minilm+sides", ...).
         device: torch device.
+
+    Attributes:
+        vocabulary: what the models know about captions (the weights folder's
+            :class:`~motion_env.text.vocabulary.Vocabulary`), or None: then captions are only
+            checked for language and length, not for their distance to known wordings.
     """
 
     def __init__(
@@ -114,6 +123,8 @@ class Pipeline:
         self.sampling = sampling
         self.text_encoder_name = text_encoder_name if text_encoder is None else str(text_encoder.name)
         self._text_encoder = text_encoder
+        self.vocabulary: Vocabulary | None = None
+        self._caption_warnings: dict[str, str] = {}  # caption -> its warning ('' none), made once
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -145,8 +156,33 @@ class Pipeline:
         return self._text_encoder
 
     def encode_text(self, texts: Sequence[str]) -> torch.Tensor:
-        """Checked captions -> (N, text_dim) float32 embeddings on the pipeline's device."""
-        return torch.as_tensor(self.text_encoder.encode(list(texts)), dtype=torch.float32).to(self.device)
+        """Checked captions -> (N, text_dim) float32 embeddings on the pipeline's device.
+
+        A caption seen for the first time is checked (:meth:`caption_warning`); a problem is a
+        ``UserWarning``, once per caption, however often the stream or the environments ask again.
+        """
+        emb = torch.as_tensor(self.text_encoder.encode(list(texts)), dtype=torch.float32)
+        for text, row in zip(texts, emb, strict=True):
+            if text not in self._caption_warnings:
+                self._caption_warnings[text] = message = self._check_caption(text, row.numpy())
+                if message:
+                    warnings.warn(message, UserWarning, stacklevel=3)
+        return emb.to(self.device)
+
+    def _check_caption(self, text: str, embedding: np.ndarray) -> str:
+        vocab = self.vocabulary
+        # The stored wordings are embedded by the base of the models' encoder ("minilm" of
+        # "minilm+sides", whose first half is that embedding); any other encoder: text checks only.
+        if vocab is None or self.text_encoder_name.split("+")[0] != vocab.encoder:
+            return caption_warning(text)
+        return caption_warning(text, embedding, vocab)
+
+    def caption_warning(self, text: str) -> str:
+        """The warning a checked caption gets ('' for none); a caption not encoded yet is encoded
+        first (and warns, as generating from it would), later calls read the cached verdict."""
+        if text not in self._caption_warnings:
+            self.encode_text([text])
+        return self._caption_warnings[text]
 
     # ------------------------------------------------------------------ 2. root path
     def init_controller(

@@ -14,12 +14,18 @@ from typing import Any, Protocol
 
 import viser
 
-from motion_env.motion.skeleton import FPS
-from motion_env.studio.session import Stats, StudioSession
+from motion_env.motion.skeleton import FPS, JOINT_NAMES
+from motion_env.studio.session import (
+    HEAD_LIMIT_RANGE,
+    MAX_TARGET_HEIGHT,
+    MIN_TARGET_SECONDS,
+    Stats,
+    StudioSession,
+)
 
 __all__ = ["CLICK_MODES", "ControlPanel", "notify"]
 
-CLICK_MODES = ("waypoint", "obstacle", "goal (A* agent)")
+CLICK_MODES = ("waypoint", "obstacle", "goal (A* agent)", "joint target")
 JUDGE_SECONDS = 5.0
 
 
@@ -109,6 +115,39 @@ class ControlPanel:
             self.clear_goal = gui.add_button("Stop the A* agent", hint="its last plan stays as the route")
             self.clear_obstacles = gui.add_button("Clear obstacles")
 
+        with gui.add_folder("Joint target"):
+            self.target_joint = gui.add_dropdown(
+                "Joint",
+                JOINT_NAMES,
+                initial_value="right_wrist",
+                hint='with "Click places: joint target", a click on the floor puts this joint above it',
+            )
+            # No min / max here: the session refuses a height out of range and the page says why.
+            self.target_height = gui.add_number(
+                "Height (m)", 1.2, step=0.05, hint=f"above the floor, 0 to {MAX_TARGET_HEIGHT:g} m"
+            )
+            self.target_seconds = gui.add_number(
+                "Target in (s)",
+                1.0,
+                min=MIN_TARGET_SECONDS,
+                max=600.0,
+                step=0.5,
+                hint=f"met exactly this long after the click (at least {MIN_TARGET_SECONDS:g} s)",
+            )
+            self.clear_targets = gui.add_button(
+                "Clear joint targets", hint="the selected character's joints are free again"
+            )
+            low, high = HEAD_LIMIT_RANGE
+            self.head_limit = gui.add_number(
+                "Head at most (m)",
+                0.0,
+                step=0.05,
+                hint=f"0: no limit; else {low:g} to {high:g} m (the knees bend)",
+            )
+            self.apply_head_limit = gui.add_button(
+                "Apply head limit", hint="from half a second on, for the selected character"
+            )
+
         with gui.add_folder("Playback"):
             self.play = gui.add_button("Pause", hint="play / pause")
             self.step = gui.add_button("Step", hint="one frame (1/20 s), then pause")
@@ -176,6 +215,19 @@ class ControlPanel:
         def _(_: viser.GuiEvent) -> None:
             session.clear_obstacles()
 
+        @self.clear_targets.on_click
+        @reported("Joint targets")
+        def _(_: viser.GuiEvent) -> None:
+            session.clear_joint_targets(self.selected)
+
+        @self.apply_head_limit.on_click
+        @reported("Head limit not applied")
+        def _(event: viser.GuiEvent) -> None:
+            height = float(self.head_limit.value)
+            session.set_head_limit(self.selected, height or None)
+            text = f"the head stays below {height:g} m" if height else "no head limit"
+            notify(event.client, "Head limit", text)
+
         @self.play.on_click
         def _(_: viser.GuiEvent) -> None:
             studio.set_playing(not studio.playing)
@@ -238,10 +290,13 @@ class ControlPanel:
             route = f"last waypoint reached ({stats.to_next_m:.2f} m)"
         else:
             route = f"{stats.to_next_m:.2f} m to the next waypoint ({stats.waypoints_left} left)"
+        ahead = f" ({stats.targets_left} ahead)" if stats.targets_left else ""
+        head = "" if stats.head_limit is None else f" · head at most {stats.head_limit:g} m"
         self.numbers.content = (
             f"**frame** {stats.frame} ({stats.frame / FPS:.1f} s) · **fps** {rate}  \n"
             f"**step** {stats.step_ms:.1f} ms (slowest in the last second {stats.step_ms_max:.1f} ms)  \n"
-            f"**speed** {stats.speed_mps:.2f} m/s · {route}"
+            f"**speed** {stats.speed_mps:.2f} m/s · {route}  \n"
+            f"**joint targets** {stats.control}{ahead}{head}"
         )
 
 

@@ -1,4 +1,5 @@
-"""The 3-D scene of the studio page, drawn with viser: floor, characters, trails, routes, obstacles.
+"""The 3-D scene of the studio page, drawn with viser: floor, characters, trails, routes, obstacles,
+joint targets.
 
 :class:`SceneView` owns every scene node. It is built once per studio and then told, once per
 frame, what a :class:`~motion_env.studio.session.Snapshot` holds; only what moved is sent (the
@@ -6,7 +7,8 @@ figures every frame, the trails every few frames, waypoints and obstacles when t
 every node update is a message to every open tab.
 
 Colours are the stick-figure videos' (:mod:`motion_env.render.scene`): left limbs blue, right
-limbs orange, the spine dark grey, the trail blue, waypoints purple, the next one pink.
+limbs orange, the spine dark grey, the trail blue, waypoints purple, the next one pink; a joint
+target is a red sphere on a thin stem from the floor, labelled with its joint and time, grey once met.
 """
 
 from __future__ import annotations
@@ -16,8 +18,9 @@ from collections.abc import Callable
 import numpy as np
 import viser
 
-from motion_env.motion.skeleton import FPS, JOINT_INDEX
+from motion_env.motion.skeleton import FPS, JOINT_INDEX, JOINT_NAMES
 from motion_env.render.scene import (
+    HIGHLIGHT_COLOR,
     MAX_LABELLED_WAYPOINTS,
     OBSTACLE_COLOR,
     PASSED_COLOR,
@@ -154,6 +157,7 @@ class SceneView:
                 )
         self._waypoint_nodes: list[list] = [[] for _ in range(count)]
         self._goal_nodes: list = [None] * count
+        self._target_nodes: list[list] = [[] for _ in range(count)]
         self._obstacle_nodes: list = []
         self._drawn_version: tuple | None = None
         self._drawn_obstacles: np.ndarray = np.zeros((0, 3))
@@ -177,6 +181,7 @@ class SceneView:
                 for i in range(self._count):
                     self._draw_route(i, snap)
                     self._draw_goal(i, snap.goals[i])
+                    self._draw_targets(i, snap)
                     if self._labels:
                         self._labels[i].text = f"{i + 1}: {_short(snap.captions[i])}"
                 if not np.array_equal(snap.obstacles, self._drawn_obstacles):
@@ -240,6 +245,32 @@ class SceneView:
                 wxyz=_Z_TO_Y,
                 position=(float(goal[0]), 0.02, float(goal[1])),
             )
+
+    def _draw_targets(self, i: int, snap: Snapshot) -> None:
+        """Character i's joint targets: a sphere where the joint is asked to be, a stem down to the
+        floor, a label (joint and time); grey once its frame has been played."""
+        scene = self._server.scene
+        for node in self._target_nodes[i]:
+            node.remove()  # and its label, a child node
+        nodes = self._target_nodes[i] = []
+        who = f"{i + 1}." if self._count > 1 else ""
+        for k, (frame, j, x, y, z) in enumerate(snap.joint_targets[i]):
+            color = _rgb(PASSED_COLOR if frame < snap.frame else HIGHLIGHT_COLOR)
+            where = (float(x), float(y), float(z))
+            sphere = scene.add_icosphere(
+                f"/character{i}/jtarget{k}", 0.05, color, subdivisions=2, position=where
+            )
+            scene.add_label(
+                f"/character{i}/jtarget{k}/label",
+                f"{who}{JOINT_NAMES[int(j)]} ({frame / FPS:.1f} s)",
+                position=(0.0, 0.08, 0.0),
+                anchor="bottom-center",
+            )
+            stem = np.array([[[x, _FLOOR_Y, z], [x, y, z]]], np.float32)
+            nodes += [
+                sphere,
+                scene.add_line_segments(f"/character{i}/jtarget{k}_stem", stem, color, thickness=0.01),
+            ]
 
     def _draw_obstacles(self, obstacles: np.ndarray) -> None:
         for node in self._obstacle_nodes:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import socket
 import tempfile
 import threading
 import time
@@ -123,6 +124,7 @@ class Studio:
             # viser says "Server stopped" on stdout; the command line has its own last word.
             with contextlib.redirect_stdout(io.StringIO()):
                 server.stop()
+            _wait_until_free(self.host, self.port)
 
     def serve_forever(self) -> None:
         """Block until Ctrl-C (KeyboardInterrupt, raised to the caller) or :meth:`stop`."""
@@ -229,10 +231,20 @@ class Studio:
                 self.session.add_waypoint(i, point, seconds or None)
             elif mode == CLICK_MODES[1]:
                 self.session.add_obstacle(point, float(self.panel.obstacle_radius.value))
-            else:
+            elif mode == CLICK_MODES[2]:
                 self.session.set_goal(i, point)
+            else:
+                panel = self.panel
+                self.session.set_joint_target(
+                    i,
+                    panel.target_joint.value,
+                    point,
+                    float(panel.target_height.value),
+                    float(panel.target_seconds.value),
+                )
         except (ValueError, IndexError) as exc:
-            notify(event.client, f"No {mode.split()[0]} placed", str(exc), error=True)
+            what = mode if mode == CLICK_MODES[3] else mode.split()[0]
+            notify(event.client, f"No {what} placed", str(exc), error=True)
 
     def _on_floor_drag(self, event: viser.SceneNodeDragEvent) -> None:
         """Shift + drag on the floor draws a path; on release it becomes the route."""
@@ -315,3 +327,18 @@ class Studio:
                 note.remove()
         if client is not None:
             client.send_file_download(path.name, data, save_immediately=True)
+
+
+def _wait_until_free(host: str, port: int, seconds: float = 5.0) -> None:
+    """Return once a new server could listen on `port` again (viser closes its socket a moment
+    after stop()). SO_REUSEADDR, as servers bind: the connections the server closed linger in
+    TIME_WAIT for a minute, which blocks a plain bind but not a new listener."""
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        with socket.socket() as probe:
+            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            try:
+                probe.bind((host, port))
+                return
+            except OSError:
+                time.sleep(0.05)

@@ -1,8 +1,8 @@
 """The studio's state and its one frame per tick, without any web page.
 
 A :class:`StudioSession` holds B characters of one generator stream
-(:class:`motion_env.generation.streaming.MotionStream`), their captions, routes, goals, the
-arena's obstacles and what has been generated so far. The page (:mod:`motion_env.studio.server`)
+(:class:`motion_env.generation.streaming.MotionStream`), their captions, routes, goals, joint targets,
+the arena's obstacles and what has been generated so far. The page (:mod:`motion_env.studio.server`)
 calls :meth:`StudioSession.tick` from its player thread, once per frame, and the edit methods
 from the threads that serve the browser's events; one lock orders them, so a change lands between
 two frames, which the stream turns into a change without a pop (from its next token on).
@@ -24,8 +24,9 @@ from typing import Any
 import numpy as np
 
 from motion_env.generation.request import check_feasible, check_text
-from motion_env.motion.skeleton import FPS, NUM_JOINTS
+from motion_env.motion.skeleton import FPS, JOINT_INDEX, JOINT_NAMES, NUM_JOINTS
 from motion_env.motion.types import Motion
+from motion_env.objectives import HeightLimit
 from motion_env.studio.agent import GoalAgent
 from motion_env.studio.geometry import ARENA_HALF_SIZE, resample_path
 from motion_env.studio.routes import ARRIVE_RADIUS, Route
@@ -38,6 +39,12 @@ TRAIL_FRAMES = 60 * FPS  # the trail drawn behind each character: its last minut
 START_SPACING = 1.5  # metres between the characters of a crowd at the start
 MAX_OBSTACLE_RADIUS = 5.0
 PATH_SPACING = 0.5  # metres between the waypoints of a drawn path
+MAX_TARGET_HEIGHT = 2.5  # metres: joint targets are placed from the floor up to this height
+MIN_TARGET_SECONDS = 0.5  # a joint target this far ahead (10 frames) is met exactly at its frame
+MAX_TARGET_SECONDS = 600.0
+TARGET_SHOWN_FRAMES = FPS  # a met joint target stays drawn (greyed) this long after its frame
+HEAD_LIMIT_RANGE = (0.6, MAX_TARGET_HEIGHT)  # metres: a lower head would need the body folded up
+_FOREVER = 2**31 - 1  # the open end of a height limit, in frames
 
 
 @dataclass(frozen=True)
@@ -54,7 +61,10 @@ class Snapshot:
         goals: B goals (x, z) of the A* agent, or None.
         obstacles: (N, 3) circles x, z, radius.
         captions: B captions.
-        version: changes whenever routes, goals or obstacles change (the page redraws them then).
+        version: changes whenever routes, goals, obstacles or joint targets change (the page
+            redraws them then).
+        joint_targets: B arrays (K, 5) of the joint targets still drawn: frame, joint index, x, y, z
+            (a target stays for a second after its frame).
     """
 
     frame: int
@@ -67,6 +77,7 @@ class Snapshot:
     obstacles: np.ndarray
     captions: list[str]
     version: tuple
+    joint_targets: list[np.ndarray]
 
 
 @dataclass(frozen=True)
@@ -79,6 +90,9 @@ class Stats:
     speed_mps: float  # pelvis speed over the last second, on the floor
     to_next_m: float | None  # to the waypoint the character heads for (None: no route)
     waypoints_left: int
+    targets_left: int = 0  # joint targets whose frame is still ahead
+    control: str = ""  # how well the emitted joint targets were met (MotionStream.control_summary)
+    head_limit: float | None = None  # metres, the head's height limit (None: none)
 
 
 class _Character:
@@ -90,6 +104,32 @@ class _Character:
         self.route = Route()
         self.agent: GoalAgent | None = None
         self.captions_log: list[tuple[int, str]] = [(0, caption)]  # (frame, caption) changes
+        self.targets: dict[tuple[int, int], np.ndarray] = {}  # (frame, joint) -> (3,) world x, y, z
+        self.head_limit: float | None = None  # metres
+
+
+def _check_joint(joint: Any) -> int:
+    if isinstance(joint, str) and joint.strip() in JOINT_INDEX:
+        return JOINT_INDEX[joint.strip()]
+    if not isinstance(joint, bool) and isinstance(joint, int | np.integer) and 0 <= joint < NUM_JOINTS:
+        return int(joint)
+    raise ValueError(f"there is no joint {joint!r}: pick one of {', '.join(JOINT_NAMES)}")
+
+
+def _check_number(value: Any, low: float, high: float, what: str, unit: str) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        number = float("nan")
+    if not (np.isfinite(number) and low <= number <= high):
+        raise ValueError(f"{what} must be from {low:g} to {high:g} {unit}, got {value!r}")
+    return number
+
+
+def _target_rows(targets: dict[tuple[int, int], np.ndarray]) -> np.ndarray:
+    """{(frame, joint): xyz} -> (K, 5) frame, joint, x, y, z, by frame."""
+    rows = [(frame, j, *xyz) for (frame, j), xyz in sorted(targets.items())]
+    return np.array(rows, np.float64).reshape(-1, 5)
 
 
 def _start_positions(count: int) -> np.ndarray:
@@ -156,6 +196,7 @@ class StudioSession:
         for c in chars:
             c.route.restart()
             c.captions_log = [(0, c.caption)]
+            c.targets = {}  # frames of the old episode
             if c.agent is not None:
                 c.agent = GoalAgent(c.agent.goal, self._obstacles)
         routes = [c.route.ahead(0) for c in chars]
@@ -166,6 +207,9 @@ class StudioSession:
                 [c.caption for c in chars], waypoints=routes, starts=starts, seed=self.seed, infeasible="warn"
             )
         self._note_warnings(caught)
+        for i, c in enumerate(chars):
+            if c.head_limit is not None:
+                self._send_head_limit(i, 0)
         self._frame = 0
         self._joints = np.zeros((len(chars), NUM_JOINTS, 3), np.float32)
         self._history: deque[np.ndarray] = deque(maxlen=MAX_HISTORY_FRAMES)  # (B, 22, 3) per frame
@@ -205,6 +249,13 @@ class StudioSession:
             # The agent looks again once per token (4 frames): re-planning is what costs.
             if c.agent is not None and frame % 4 == 0:
                 self._update_agent(i, pelvis)
+            if c.targets:
+                met = [key for key in c.targets if key[0] == frame]  # drawn grey from now on
+                gone = [key for key in c.targets if key[0] < frame - TARGET_SHOWN_FRAMES]
+                for key in gone:
+                    del c.targets[key]
+                if met or gone:
+                    self._version += 1
 
     def _update_agent(self, i: int, pelvis: np.ndarray) -> None:
         c = self._chars[i]
@@ -242,7 +293,12 @@ class StudioSession:
         i = _check_index(index, len(self._chars))
         # A caption never seen costs the text encoder a few ms (seconds for the first one of the
         # process): encode it here, outside the lock, so that the frames keep coming meanwhile.
-        self._gen.encode_text([text])
+        # What the model says about it (another language, nothing it knows) goes to the page.
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            self._gen.encode_text([text])
+        with self._lock:
+            self._notices.extend(f"character {i + 1}: {w.message}" for w in caught)
         with self._lock:
             self._stream.set_text(text, index=i)
             c = self._chars[i]
@@ -356,6 +412,87 @@ class StudioSession:
                 c.agent.set_obstacles(self._obstacles)
         self._version += 1
 
+    def set_joint_target(
+        self,
+        index: int,
+        joint: str | int,
+        xz: Sequence[float],
+        height: float,
+        seconds: float = 1.0,
+    ) -> int:
+        """Ask character `index`'s `joint` to be at (x, `height`, z) `seconds` from now; returns
+        the episode frame it is met at.
+
+        The character's earlier targets stay (a new one for the same joint and frame replaces it).
+        At least :data:`MIN_TARGET_SECONDS` ahead, the stream meets it exactly at its frame, the
+        joint easing into it over the half second before and out of it over the half second after.
+
+        Args:
+            joint: a name of :data:`motion_env.motion.skeleton.JOINT_NAMES` or its index.
+            xz: the point on the floor under the target.
+            height: metres above the floor, 0 to :data:`MAX_TARGET_HEIGHT`.
+            seconds: from now, :data:`MIN_TARGET_SECONDS` to :data:`MAX_TARGET_SECONDS`.
+        """
+        i = _check_index(index, len(self._chars))
+        j = _check_joint(joint)
+        point = _check_xz(xz, "joint target")
+        y = _check_number(height, 0.0, MAX_TARGET_HEIGHT, "a joint target's height", "m")
+        delay = _check_number(
+            seconds,
+            MIN_TARGET_SECONDS,
+            MAX_TARGET_SECONDS,
+            "a joint target's time",
+            "seconds from now (sooner cannot be met exactly)",
+        )
+        with self._lock:
+            frame = self._frame + max(1, round(delay * FPS))
+            c = self._chars[i]
+            c.targets[(frame, j)] = np.array([point[0], y, point[1]], np.float64)
+            self._send_targets(i)
+            return frame
+
+    def clear_joint_targets(self, index: int) -> None:
+        """Character `index` has no joint targets any more (one being eased into lets go)."""
+        i = _check_index(index, len(self._chars))
+        with self._lock:
+            self._chars[i].targets = {}
+            self._send_targets(i)
+
+    def _send_targets(self, i: int) -> None:
+        """Give character i's joint targets ahead to the stream (held lock)."""
+        ahead = {key: xyz for key, xyz in self._chars[i].targets.items() if key[0] >= self._frame}
+        array = None
+        if ahead:
+            last = max(frame for frame, _ in ahead)
+            array = np.full((last - self._frame + 1, NUM_JOINTS, 3), np.nan)
+            for (frame, j), xyz in ahead.items():
+                array[frame - self._frame, j] = xyz
+        # The stream warns about targets of frames it has decoded already: those are the ones it
+        # has met (or is meeting) before this call, which only re-sends them with the new one.
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            self._stream.set_joint_targets(array, index=i, first_frame=self._frame)
+        self._version += 1
+
+    def set_head_limit(self, index: int, max_height: float | None) -> None:
+        """Keep character `index`'s head at most `max_height` metres above the floor from half a
+        second on (None: no limit); the limit stays across a reset."""
+        i = _check_index(index, len(self._chars))
+        if max_height is not None:
+            low, high = HEAD_LIMIT_RANGE
+            max_height = _check_number(max_height, low, high, "the head's height limit", "m")
+        with self._lock:
+            self._chars[i].head_limit = max_height
+            self._send_head_limit(i, self._frame + round(MIN_TARGET_SECONDS * FPS))
+
+    def _send_head_limit(self, i: int, first: int) -> None:
+        """Give character i's head limit, from episode frame `first` on, to the stream (held lock)."""
+        height = self._chars[i].head_limit
+        limits = None
+        if height is not None:
+            limits = [HeightLimit(joint="head", max_height=height, frames=(first, _FOREVER))]
+        self._stream.set_objectives(limits, index=i)
+
     # ------------------------------------------------------------------ reading
     @property
     def frame(self) -> int:
@@ -379,6 +516,7 @@ class StudioSession:
             obstacles=np.array(self._obstacles, np.float64).reshape(-1, 3),
             captions=[c.caption for c in chars],
             version=(self._version, *(c.route.version for c in chars)),
+            joint_targets=[_target_rows(c.targets) for c in chars],
         )
 
     def stats(self, index: int = 0) -> Stats:
@@ -394,7 +532,11 @@ class StudioSession:
             to_next = None if target is None else float(np.linalg.norm(pelvis[-1] - target))
             steps = list(self._step_ms) or [0.0]
             left = 0 if c.route.reached or not len(c.route) else len(c.route) - c.route.next
-            return Stats(self._frame, steps[-1], max(steps), speed, to_next, left)
+            targets = sum(frame >= self._frame for frame, _ in c.targets)
+            control = self._stream.control_summary(i)
+            return Stats(
+                self._frame, steps[-1], max(steps), speed, to_next, left, targets, control, c.head_limit
+            )
 
     def pop_notices(self) -> list[str]:
         """Messages for the user since the last call (retimed waypoints, an agent that gave up)."""

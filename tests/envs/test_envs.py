@@ -446,3 +446,24 @@ def test_issuing_the_route_reaches_its_end_without_pops(trained, edits):
     steps = np.linalg.norm(np.diff(joints, axis=0), axis=-1)  # (T-1, 22)
     frame, joint = np.unravel_index(steps.argmax(), steps.shape)
     assert steps.max() <= 0.35, f"joint {joint} moved {steps.max():.2f} m from frame {frame} to {frame + 1}"
+
+
+def test_info_carries_the_caption_warning(gen) -> None:
+    """info["caption_warning"]: a str, '' for an ordinary caption; the warning itself comes once."""
+    env = gym.make("motion_env/Waypoints-v0", generator=gen)
+    _, info = env.reset(seed=0, options={"text": "a person walks"})
+    assert info["caption_warning"] == ""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        _, info = env.reset(seed=0, options={"text": "una persona camina"})
+        for _ in range(3):
+            *_, info = env.step(env.action_space.sample())
+        env.reset(seed=1, options={"text": "una persona camina"})
+    assert "Spanish" in info["caption_warning"]
+    assert sum("una persona camina" in str(w.message) for w in caught) == 1
+    envs = gym.make_vec(
+        "motion_env/Waypoints-v0", num_envs=2, vectorization_mode="vector_entry_point", generator=gen
+    )
+    with pytest.warns(UserWarning, match="not in the Latin script"):
+        _, infos = envs.reset(seed=0, options={"text": "一个人在走路"})
+    assert infos["caption_warning"].shape == (2,) and all("Latin" in w for w in infos["caption_warning"])

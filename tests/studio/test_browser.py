@@ -250,6 +250,7 @@ def test_download_npz_through_the_page(studio, chromium, tmp_path) -> None:
     from motion_env.motion.types import Motion
 
     page, _ = open_tab(chromium, studio)
+    page.get_by_role("button", name="Clear joint targets").wait_for(timeout=10_000)  # the joint control
     wait_for(page, lambda: studio.session.frame > 30, 20, "some frames")
     page.get_by_text("Keep").click()  # the folder starts closed
     with page.expect_download(timeout=30_000) as download:

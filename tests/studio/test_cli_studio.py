@@ -94,4 +94,5 @@ def test_ctrl_c_leaves_nothing_behind(stop: signal.Signals) -> None:
     assert "Traceback" not in err and err.strip().splitlines()[-1] == "motion-env studio: interrupted", err
     assert "played" in out and "fps" in out
     with socket.socket() as probe:
-        probe.bind(("127.0.0.1", port))  # the port is free again
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # TIME_WAIT does not count
+        probe.bind(("127.0.0.1", port))  # the port is free again: a new server could listen there

@@ -15,7 +15,10 @@ pytest.importorskip(
 
 
 def port_is_free(port: int) -> bool:
+    """Whether a new server could listen on `port` (SO_REUSEADDR, as servers bind: connections the
+    old server closed may linger in TIME_WAIT, which does not keep a listener out)."""
     with socket.socket() as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
             probe.bind(("127.0.0.1", port))
         except OSError:
@@ -57,3 +60,31 @@ def test_serves_plays_in_real_time_and_frees_the_port(generator) -> None:
         studio.stop()
     assert port_is_free(port)
     studio.stop()  # twice: nothing left to stop
+
+
+def test_a_floor_click_sets_a_joint_target(generator) -> None:
+    from types import SimpleNamespace
+
+    from motion_env.studio.panel import CLICK_MODES
+    from motion_env.studio.server import Studio
+
+    studio = Studio(generator, ["a person walks forward"], port=0)
+    studio.start()
+    try:
+        studio.set_playing(False)
+        time.sleep(0.3)  # a frame being played ends
+        panel = studio.panel
+        panel.click_mode.value = CLICK_MODES[3]
+        panel.target_joint.value = "left_wrist"
+        panel.target_height.value = 1.3
+        down = SimpleNamespace(ray_origin=(0.5, 2.0, 1.0), ray_direction=(0.0, -1.0, 0.0), client=None)
+        studio._on_floor_click(down)
+        ((frame, joint, x, y, z),) = studio.session.snapshot().joint_targets[0]
+        assert (joint, x, y, z) == (20, 0.5, 1.3, 1.0) and frame == studio.session.frame + 20
+        panel.target_height.value = 3.0  # refused (a notification in the tab): nothing placed
+        studio._on_floor_click(down)
+        assert len(studio.session.snapshot().joint_targets[0]) == 1
+        studio.session.clear_joint_targets(0)
+        assert len(studio.session.snapshot().joint_targets[0]) == 0
+    finally:
+        studio.stop()

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from motion_env.motion.skeleton import JOINT_INDEX
 from motion_env.motion.types import Motion
 from motion_env.studio.geometry import BONES, bone_colors, bone_segments, floor_point, resample_path
 from motion_env.studio.keep import clip_file
@@ -164,3 +165,81 @@ def test_a_crowd_with_its_own_captions(generator) -> None:
     assert len(snap.routes[0]) == 0
     clip = session.clip(2)
     assert isinstance(clip, Motion) and clip.text == captions[2]
+
+
+def test_joint_targets_are_met_at_their_frame(generator) -> None:
+    # Where the joints go without targets (the same seed gives the same frames).
+    free = StudioSession(generator, ["a person walks forward"], seed=0)
+    for _ in range(70):
+        free.tick()
+    natural = free.clip(0).joints
+    right, left, head = JOINT_INDEX["right_wrist"], JOINT_INDEX["left_wrist"], JOINT_INDEX["head"]
+
+    session = StudioSession(generator, ["a person walks forward"], seed=0)
+    for _ in range(29):
+        session.tick()
+    want = natural[50, right] + (0.1, 0.2, 0.1)  # within reach of where the hand would be
+    assert session.set_joint_target(0, "right_wrist", want[[0, 2]], want[1]) == 50  # 1 s from frame 30
+    for _ in range(10):
+        session.tick()
+    # A second one, half a second ahead: the first one stays.
+    want2 = natural[50, left] + (-0.1, 0.15, 0.0)
+    assert session.set_joint_target(0, left, want2[[0, 2]], want2[1], seconds=0.5) == 50
+    targets = session.snapshot().joint_targets[0]
+    assert targets.shape == (2, 5) and targets[:, 1].tolist() == [left, right]
+    assert session.stats(0).targets_left == 2
+    for _ in range(15):
+        session.tick()
+    joints = session.clip(0).joints
+    assert np.linalg.norm(joints[50, right] - want) < 0.01
+    assert np.linalg.norm(joints[50, left] - want2) < 0.01
+    stats = session.stats(0)
+    assert stats.targets_left == 0 and stats.control.startswith("2 targets: mean error")
+    assert len(session.snapshot().joint_targets[0]) == 2  # met, still drawn for a second
+    for _ in range(25):
+        session.tick()
+    assert len(session.snapshot().joint_targets[0]) == 0
+
+    # Cleared before its frame: not met, the head goes its own way.
+    up = joints[-1, 0] + (0.0, 1.0, 0.3)
+    frame = session.set_joint_target(0, "head", up[[0, 2]], up[1], seconds=1.0)
+    session.clear_joint_targets(0)
+    assert len(session.snapshot().joint_targets[0]) == 0
+    for _ in range(25):
+        session.tick()
+    assert np.linalg.norm(session.clip(0).joints[frame, head] - up) > 0.3
+    assert session.stats(0).control.startswith("2 targets")
+
+    # A head limit: the head stays under it once it has eased in.
+    session.set_head_limit(0, 1.4)
+    for _ in range(40):
+        session.tick()
+    assert session.clip(0).joints[-25:, head, 1].max() <= 1.4 + 1e-3 < natural[:, head, 1].max()
+    assert session.stats(0).head_limit == 1.4
+    session.set_head_limit(0, None)
+    assert session.stats(0).head_limit is None
+
+
+def test_bad_joint_targets_are_refused_with_a_reason(generator) -> None:
+    session = StudioSession(generator, ["a person walks"], seed=0)
+    cases = [
+        (
+            lambda: session.set_joint_target(0, "right_wrist", (1.0, 1.0), 3.0),
+            "height must be from 0 to 2.5 m",
+        ),
+        (
+            lambda: session.set_joint_target(0, "right_wrist", (1.0, 1.0), -0.1),
+            "height must be from 0 to 2.5",
+        ),
+        (lambda: session.set_joint_target(0, "right_wrist", (1.0, 1.0), np.nan), "height must be"),
+        (lambda: session.set_joint_target(0, "right_wrist", (1.0, 1.0), 1.0, 0.2), "time must be from 0.5"),
+        (lambda: session.set_joint_target(0, "right_wirst", (1.0, 1.0), 1.0), "no joint 'right_wirst'"),
+        (lambda: session.set_joint_target(0, "right_wrist", (99.0, 1.0), 1.0), "off the floor"),
+        (lambda: session.set_head_limit(0, 0.2), "head's height limit must be from 0.6 to 2.5 m"),
+    ]
+    for call, message in cases:
+        with pytest.raises(ValueError, match=message):
+            call()
+    with pytest.raises(IndexError, match="no character 2"):
+        session.set_joint_target(2, "head", (0.0, 1.0), 1.5)
+    assert len(session.snapshot().joint_targets[0]) == 0 and session.stats(0).head_limit is None
