@@ -13,6 +13,7 @@ What is where:
   extra, ``pip install "motion-env[studio]"``), imported only by the command that serves it.
 """
 
-from motion_env.studio.session import Snapshot, Stats, StudioSession
+from motion_env.studio.session import StudioSession
+from motion_env.studio.state import Snapshot, Stats
 
 __all__ = ["Snapshot", "Stats", "StudioSession"]

@@ -15,13 +15,8 @@ from typing import Any, Protocol
 import viser
 
 from motion_env.motion.skeleton import FPS, JOINT_NAMES
-from motion_env.studio.session import (
-    HEAD_LIMIT_RANGE,
-    MAX_TARGET_HEIGHT,
-    MIN_TARGET_SECONDS,
-    Stats,
-    StudioSession,
-)
+from motion_env.studio.session import HEAD_LIMIT_RANGE, MAX_TARGET_HEIGHT, MIN_TARGET_SECONDS, StudioSession
+from motion_env.studio.state import Stats
 
 __all__ = ["CLICK_MODES", "ControlPanel", "notify"]
 

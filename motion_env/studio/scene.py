@@ -31,7 +31,7 @@ from motion_env.render.scene import (
     hex_rgb,
 )
 from motion_env.studio.geometry import ARENA_HALF_SIZE, bone_colors, bone_segments, joint_colors
-from motion_env.studio.session import Snapshot
+from motion_env.studio.state import Snapshot
 
 __all__ = ["SceneView"]
 

@@ -18,25 +18,33 @@ import time
 import warnings
 from collections import deque
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from motion_env.generation.request import check_feasible, check_text
-from motion_env.motion.skeleton import FPS, JOINT_INDEX, JOINT_NAMES, NUM_JOINTS
+from motion_env.motion.skeleton import FPS, NUM_JOINTS
 from motion_env.motion.types import Motion
 from motion_env.objectives import HeightLimit
 from motion_env.studio.agent import GoalAgent
-from motion_env.studio.geometry import ARENA_HALF_SIZE, resample_path
+from motion_env.studio.geometry import resample_path
 from motion_env.studio.routes import ARRIVE_RADIUS, Route
+from motion_env.studio.state import (
+    Snapshot,
+    Stats,
+    check_index,
+    check_joint,
+    check_number,
+    check_xz,
+    start_positions,
+    target_rows,
+)
 
-__all__ = ["MAX_CHARACTERS", "Snapshot", "Stats", "StudioSession"]
+__all__ = ["MAX_CHARACTERS", "StudioSession"]
 
 MAX_CHARACTERS = 16  # a small crowd; the batched stream costs grow with it (see the README)
 MAX_HISTORY_FRAMES = 20 * 60 * FPS  # 20 minutes kept per session (about 6 MB per character)
 TRAIL_FRAMES = 60 * FPS  # the trail drawn behind each character: its last minute
-START_SPACING = 1.5  # metres between the characters of a crowd at the start
 MAX_OBSTACLE_RADIUS = 5.0
 PATH_SPACING = 0.5  # metres between the waypoints of a drawn path
 MAX_TARGET_HEIGHT = 2.5  # metres: joint targets are placed from the floor up to this height
@@ -45,54 +53,6 @@ MAX_TARGET_SECONDS = 600.0
 TARGET_SHOWN_FRAMES = FPS  # a met joint target stays drawn (greyed) this long after its frame
 HEAD_LIMIT_RANGE = (0.6, MAX_TARGET_HEIGHT)  # metres: a lower head would need the body folded up
 _FOREVER = 2**31 - 1  # the open end of a height limit, in frames
-
-
-@dataclass(frozen=True)
-class Snapshot:
-    """What the page draws after a tick (arrays are copies; B characters).
-
-    Attributes:
-        frame: frames emitted in this episode.
-        joints: (B, 22, 3) the pose just emitted.
-        trails: B arrays (N, 2) of pelvis (x, z), oldest first.
-        routes: B arrays (K, 3) of waypoints (x, z, frame; NaN untimed).
-        next_waypoint: B indices of the waypoint each character heads for.
-        reached: B flags: the last waypoint has been reached.
-        goals: B goals (x, z) of the A* agent, or None.
-        obstacles: (N, 3) circles x, z, radius.
-        captions: B captions.
-        version: changes whenever routes, goals, obstacles or joint targets change (the page
-            redraws them then).
-        joint_targets: B arrays (K, 5) of the joint targets still drawn: frame, joint index, x, y, z
-            (a target stays for a second after its frame).
-    """
-
-    frame: int
-    joints: np.ndarray
-    trails: list[np.ndarray]
-    routes: list[np.ndarray]
-    next_waypoint: list[int]
-    reached: list[bool]
-    goals: list[np.ndarray | None]
-    obstacles: np.ndarray
-    captions: list[str]
-    version: tuple
-    joint_targets: list[np.ndarray]
-
-
-@dataclass(frozen=True)
-class Stats:
-    """The live numbers of one character (see :meth:`StudioSession.stats`)."""
-
-    frame: int
-    step_ms: float  # the last frame's generator step
-    step_ms_max: float  # the slowest step of the last second (a token is decoded every 4th frame)
-    speed_mps: float  # pelvis speed over the last second, on the floor
-    to_next_m: float | None  # to the waypoint the character heads for (None: no route)
-    waypoints_left: int
-    targets_left: int = 0  # joint targets whose frame is still ahead
-    control: str = ""  # how well the emitted joint targets were met (MotionStream.control_summary)
-    head_limit: float | None = None  # metres, the head's height limit (None: none)
 
 
 class _Character:
@@ -106,55 +66,6 @@ class _Character:
         self.captions_log: list[tuple[int, str]] = [(0, caption)]  # (frame, caption) changes
         self.targets: dict[tuple[int, int], np.ndarray] = {}  # (frame, joint) -> (3,) world x, y, z
         self.head_limit: float | None = None  # metres
-
-
-def _check_joint(joint: Any) -> int:
-    if isinstance(joint, str) and joint.strip() in JOINT_INDEX:
-        return JOINT_INDEX[joint.strip()]
-    if not isinstance(joint, bool) and isinstance(joint, int | np.integer) and 0 <= joint < NUM_JOINTS:
-        return int(joint)
-    raise ValueError(f"there is no joint {joint!r}: pick one of {', '.join(JOINT_NAMES)}")
-
-
-def _check_number(value: Any, low: float, high: float, what: str, unit: str) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        number = float("nan")
-    if not (np.isfinite(number) and low <= number <= high):
-        raise ValueError(f"{what} must be from {low:g} to {high:g} {unit}, got {value!r}")
-    return number
-
-
-def _target_rows(targets: dict[tuple[int, int], np.ndarray]) -> np.ndarray:
-    """{(frame, joint): xyz} -> (K, 5) frame, joint, x, y, z, by frame."""
-    rows = [(frame, j, *xyz) for (frame, j), xyz in sorted(targets.items())]
-    return np.array(rows, np.float64).reshape(-1, 5)
-
-
-def _start_positions(count: int) -> np.ndarray:
-    """(B, 3) starts: a row along x, everyone facing +Z."""
-    starts = np.zeros((count, 3), np.float32)
-    starts[:, 0] = (np.arange(count) - (count - 1) / 2) * START_SPACING
-    return starts
-
-
-def _check_index(index: Any, count: int) -> int:
-    if isinstance(index, bool) or not isinstance(index, int | np.integer) or not 0 <= index < count:
-        raise IndexError(f"there is no character {index!r} (this studio has {count})")
-    return int(index)
-
-
-def _check_xz(xz: Any, what: str = "point") -> np.ndarray:
-    arr = np.asarray(xz, np.float64).reshape(-1)
-    if arr.shape != (2,) or not np.isfinite(arr).all():
-        raise ValueError(f"a {what} must be two finite numbers (x, z), got {xz!r}")
-    if np.abs(arr).max() > ARENA_HALF_SIZE:
-        raise ValueError(
-            f"the {what} ({arr[0]:.1f}, {arr[1]:.1f}) is off the floor: keep within "
-            f"{ARENA_HALF_SIZE:g} m of the centre"
-        )
-    return arr
 
 
 class StudioSession:
@@ -175,7 +86,7 @@ class StudioSession:
             raise ValueError(f"a studio holds 1 to {MAX_CHARACTERS} characters, got {len(captions)}")
         self._gen = generator
         self._lock = threading.RLock()
-        starts = _start_positions(len(captions))
+        starts = start_positions(len(captions))
         self._chars = [_Character(c, starts[i]) for i, c in enumerate(captions)]
         self._obstacles: list[tuple[float, float, float]] = []
         self._version = 0
@@ -290,7 +201,7 @@ class StudioSession:
     def set_caption(self, index: int, text: str) -> str:
         """Give character `index` a new caption (from its next token on); returns it, stripped."""
         text = check_text(text, "the caption")
-        i = _check_index(index, len(self._chars))
+        i = check_index(index, len(self._chars))
         # A caption never seen costs the text encoder a few ms (seconds for the first one of the
         # process): encode it here, outside the lock, so that the frames keep coming meanwhile.
         # What the model says about it (another language, nothing it knows) goes to the page.
@@ -313,8 +224,8 @@ class StudioSession:
             xz: the point on the floor.
             seconds: reach it this many seconds from now (None or 0: untimed, at the caption's pace).
         """
-        i = _check_index(index, len(self._chars))
-        point = _check_xz(xz, "waypoint")
+        i = check_index(index, len(self._chars))
+        point = check_xz(xz, "waypoint")
         if seconds is not None and not (np.isfinite(seconds) and seconds >= 0):
             raise ValueError(f"a waypoint's time must be a number of seconds >= 0, got {seconds!r}")
         with self._lock:
@@ -338,8 +249,8 @@ class StudioSession:
 
     def move_waypoint(self, index: int, waypoint: int, xz: Sequence[float]) -> None:
         """Move waypoint `waypoint` (0-based) of character `index` to `xz`."""
-        i = _check_index(index, len(self._chars))
-        point = _check_xz(xz, "waypoint")
+        i = check_index(index, len(self._chars))
+        point = check_xz(xz, "waypoint")
         with self._lock:
             c = self._chars[i]
             c.route.move(int(waypoint), point)
@@ -349,10 +260,10 @@ class StudioSession:
     def set_path(self, index: int, points: np.ndarray | Sequence) -> int:
         """Replace character `index`'s route by a drawn path (N, 2), resampled every 0.5 m;
         returns the number of waypoints."""
-        i = _check_index(index, len(self._chars))
+        i = check_index(index, len(self._chars))
         pts = np.asarray(points, np.float64).reshape(-1, 2)
         for p in pts:
-            _check_xz(p, "path point")
+            check_xz(p, "path point")
         route = resample_path(pts, PATH_SPACING)
         with self._lock:
             c = self._chars[i]
@@ -363,7 +274,7 @@ class StudioSession:
 
     def clear_route(self, index: int) -> None:
         """No route for character `index`: it follows its caption alone."""
-        i = _check_index(index, len(self._chars))
+        i = check_index(index, len(self._chars))
         with self._lock:
             c = self._chars[i]
             c.route.replace(None)
@@ -373,8 +284,8 @@ class StudioSession:
     def set_goal(self, index: int, xz: Sequence[float]) -> None:
         """Let the A* agent walk character `index` to `xz` around the obstacles (it re-plans as
         obstacles come and go, and when the character drifts off its plan)."""
-        i = _check_index(index, len(self._chars))
-        goal = _check_xz(xz, "goal")
+        i = check_index(index, len(self._chars))
+        goal = check_xz(xz, "goal")
         with self._lock:
             c = self._chars[i]
             agent = GoalAgent(goal, self._obstacles)
@@ -385,14 +296,14 @@ class StudioSession:
 
     def clear_goal(self, index: int) -> None:
         """Stop the A* agent of character `index` (its last plan stays as the route)."""
-        i = _check_index(index, len(self._chars))
+        i = check_index(index, len(self._chars))
         with self._lock:
             self._chars[i].agent = None
             self._version += 1
 
     def add_obstacle(self, xz: Sequence[float], radius: float) -> None:
         """A circle obstacle; the A* agents re-plan around it."""
-        centre = _check_xz(xz, "obstacle")
+        centre = check_xz(xz, "obstacle")
         if not (np.isfinite(radius) and 0 < radius <= MAX_OBSTACLE_RADIUS):
             raise ValueError(
                 f"an obstacle's radius must be in (0, {MAX_OBSTACLE_RADIUS:g}] m, got {radius!r}"
@@ -433,11 +344,11 @@ class StudioSession:
             height: metres above the floor, 0 to :data:`MAX_TARGET_HEIGHT`.
             seconds: from now, :data:`MIN_TARGET_SECONDS` to :data:`MAX_TARGET_SECONDS`.
         """
-        i = _check_index(index, len(self._chars))
-        j = _check_joint(joint)
-        point = _check_xz(xz, "joint target")
-        y = _check_number(height, 0.0, MAX_TARGET_HEIGHT, "a joint target's height", "m")
-        delay = _check_number(
+        i = check_index(index, len(self._chars))
+        j = check_joint(joint)
+        point = check_xz(xz, "joint target")
+        y = check_number(height, 0.0, MAX_TARGET_HEIGHT, "a joint target's height", "m")
+        delay = check_number(
             seconds,
             MIN_TARGET_SECONDS,
             MAX_TARGET_SECONDS,
@@ -453,7 +364,7 @@ class StudioSession:
 
     def clear_joint_targets(self, index: int) -> None:
         """Character `index` has no joint targets any more (one being eased into lets go)."""
-        i = _check_index(index, len(self._chars))
+        i = check_index(index, len(self._chars))
         with self._lock:
             self._chars[i].targets = {}
             self._send_targets(i)
@@ -477,10 +388,10 @@ class StudioSession:
     def set_head_limit(self, index: int, max_height: float | None) -> None:
         """Keep character `index`'s head at most `max_height` metres above the floor from half a
         second on (None: no limit); the limit stays across a reset."""
-        i = _check_index(index, len(self._chars))
+        i = check_index(index, len(self._chars))
         if max_height is not None:
             low, high = HEAD_LIMIT_RANGE
-            max_height = _check_number(max_height, low, high, "the head's height limit", "m")
+            max_height = check_number(max_height, low, high, "the head's height limit", "m")
         with self._lock:
             self._chars[i].head_limit = max_height
             self._send_head_limit(i, self._frame + round(MIN_TARGET_SECONDS * FPS))
@@ -516,12 +427,12 @@ class StudioSession:
             obstacles=np.array(self._obstacles, np.float64).reshape(-1, 3),
             captions=[c.caption for c in chars],
             version=(self._version, *(c.route.version for c in chars)),
-            joint_targets=[_target_rows(c.targets) for c in chars],
+            joint_targets=[target_rows(c.targets) for c in chars],
         )
 
     def stats(self, index: int = 0) -> Stats:
         """The live numbers of character `index`."""
-        i = _check_index(index, len(self._chars))
+        i = check_index(index, len(self._chars))
         with self._lock:
             count = min(len(self._pelvis), FPS + 1)
             pelvis = np.stack([self._pelvis[k][i] for k in range(-count, 0)])  # (N, 2), the last second
@@ -551,7 +462,7 @@ class StudioSession:
         The caption is the current one; ``meta["captions"]`` lists every caption with the frame it
         was given at; ``waypoints`` are the route's, their times frames of the episode.
         """
-        i = _check_index(index, len(self._chars))
+        i = check_index(index, len(self._chars))
         with self._lock:
             joints = np.stack(self._history)[:, i]
             c = self._chars[i]
@@ -568,7 +479,7 @@ class StudioSession:
 
     def arrived(self, index: int, xz: Sequence[float], radius: float = ARRIVE_RADIUS) -> bool:
         """True when character `index`'s pelvis has passed within `radius` of `xz` this episode."""
-        i = _check_index(index, len(self._chars))
+        i = check_index(index, len(self._chars))
         with self._lock:
             pelvis = np.stack(self._history)[:, i, 0][:, [0, 2]]
         return bool((np.linalg.norm(pelvis - np.asarray(xz, np.float64), axis=1) < radius).any())
