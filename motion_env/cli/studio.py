@@ -114,9 +114,15 @@ def run_studio(args: argparse.Namespace) -> int:
     from motion_env.studio.server import Studio
 
     # `kill` ends the studio as Ctrl-C does: the page closes, the port is freed, exit code 130.
+    # Ctrl-C works even where the studio was started with SIGINT ignored (a shell's background
+    # job, `cmd &` in a script): a server that can only be killed hard is worse.
     # (Handlers can only be set from the main thread; tests run commands from others.)
     on_main = threading.current_thread() is threading.main_thread()
-    previous = signal.signal(signal.SIGTERM, _interrupt) if on_main else None
+    previous = (
+        (signal.signal(signal.SIGTERM, _interrupt), signal.signal(signal.SIGINT, signal.default_int_handler))
+        if on_main
+        else None
+    )
     studio = Studio(gen, captions, seed=args.seed, host=args.host, port=args.port)
     try:
         url = studio.start()
@@ -136,6 +142,7 @@ def run_studio(args: argparse.Namespace) -> int:
                 f"({studio.frames_played / max(studio.play_seconds, 1e-9):.1f} fps)",
                 flush=True,
             )
-        if on_main:
-            signal.signal(signal.SIGTERM, previous)
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous[0])
+            signal.signal(signal.SIGINT, previous[1])
     return 0
