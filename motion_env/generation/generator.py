@@ -255,6 +255,8 @@ class MotionGenerator:
             **extra, **self._training_extra("controller"),
         )  # fmt: skip
         (folder / SAMPLING_FILE).write_text(json.dumps(asdict(self.sampling), indent=2) + "\n")
+        if self.pipeline.vocabulary is not None:  # what the model knows travels with it
+            self.pipeline.vocabulary.save(folder)
         return folder
 
     def _training_extra(self, kind: str) -> dict[str, Any]:

@@ -139,6 +139,7 @@ class Vocabulary:
     """
 
     def __init__(self, vocab: dict[str, Any], embeddings: np.ndarray) -> None:
+        self._stored = vocab  # as read, for save()
         self.encoder = str(vocab["encoder"])
         self.actions: dict[str, Any] = vocab["actions"]
         self.styles: dict[str, Any] = vocab["styles"]
@@ -154,6 +155,15 @@ class Vocabulary:
     @property
     def dim(self) -> int:
         return int(self.embeddings.shape[1])
+
+    def save(self, folder: str | Path) -> tuple[Path, Path]:
+        """Write ``vocabulary.json`` and ``vocabulary.npy`` into a weights folder (as
+        :func:`load_vocabulary` reads them; the embeddings as float16, as shipped)."""
+        folder = Path(folder)
+        json_path, npy_path = folder / "vocabulary.json", folder / "vocabulary.npy"
+        json_path.write_text(json.dumps(self._stored, indent=1, ensure_ascii=False) + "\n", encoding="utf-8")
+        np.save(npy_path, self.embeddings.astype(np.float16))
+        return json_path, npy_path
 
     def nearest(self, embedding: np.ndarray) -> Nearest:
         """Where a caption's embedding ((D,), the `encoder`'s) lands among the known wordings."""

@@ -254,3 +254,19 @@ def test_foot_pinner_holds_feet_in_contact_and_lets_go_smoothly() -> None:
         gap.max() <= FOOT_MAX_OFFSET + 1e-6 and gap[-1] > 0.8 * FOOT_MAX_OFFSET
     )  # (a straight leg reaches less)
     assert np.abs(np.diff(gap[10:])).max() < 1e-4  # steady: it slides along
+
+
+def test_saving_keeps_what_the_model_knows_about_captions(gen: MotionGenerator, tmp_path) -> None:
+    from motion_env.text.vocabulary import load_vocabulary
+
+    shipped = load_vocabulary()
+    if shipped is None:
+        pytest.skip("the shipped vocabulary (motion_env/weights/vocabulary.*) is not installed")
+    previous, gen.pipeline.vocabulary = gen.pipeline.vocabulary, shipped
+    try:
+        folder = gen.save(tmp_path / "weights")
+        again = load_vocabulary(folder)
+        assert again is not None and again.texts == shipped.texts and again.actions == shipped.actions
+        np.testing.assert_allclose(again.embeddings, shipped.embeddings, atol=2e-3)
+    finally:
+        gen.pipeline.vocabulary = previous
