@@ -109,3 +109,33 @@ def pretrained_generator():
         return MotionGenerator.from_pretrained()
     except FileNotFoundError as exc:
         pytest.skip(f"the shipped model is not installed: {exc}")
+
+
+BUILT_DATASET = Path(__file__).resolve().parents[1] / "data" / "mocap"
+
+
+@pytest.fixture(scope="session")
+def built_dataset() -> Path:
+    """The dataset built from the real mocap (``motion-env data build ... --out data/mocap``); skips
+    when it is absent."""
+    if not (BUILT_DATASET / "index.csv").is_file():
+        pytest.skip(f"no built dataset at {BUILT_DATASET} (motion-env data build ... --out data/mocap)")
+    return BUILT_DATASET
+
+
+@pytest.fixture
+def tiny_classifier():
+    """An untrained action/style classifier of a few hundred weights (seed 0)."""
+    import torch
+
+    from motion_env.evaluation.classifier import ClassifierConfig, MotionClassifier
+
+    torch.manual_seed(0)
+    config = ClassifierConfig(
+        actions=("walk", "run", "wave-left-hand"),
+        styles=("normal", "exhausted"),
+        window=16,
+        width=8,
+        layers=2,
+    )
+    return MotionClassifier(config).eval()
