@@ -89,8 +89,6 @@ def evaluate(model: Any, env: Any, episodes: int) -> float:
 
 
 def train(args: Args) -> dict[str, Any]:
-    import stable_baselines3  # noqa: F401
-
     sb3 = require("stable_baselines3", "rl")
     import stable_baselines3.common.callbacks  # noqa: F401  (sb3.common.callbacks below)
 
@@ -105,13 +103,11 @@ def train(args: Args) -> dict[str, Any]:
     hyper = parse_env_kwargs(args.algo_kwargs)
     log: list[tuple[int, bool]] = []
     start = time.perf_counter()
+    env = motion_env.make_sb3_env(args.env_id, args.num_envs, **kwargs)
+    env.seed(args.seed)
     if args.algo == "ppo":
-        env = motion_env.make_sb3_env(args.env_id, args.num_envs, **kwargs)
-        env.seed(args.seed)
         model = sb3.PPO("MultiInputPolicy", env, seed=args.seed, device="cpu", **hyper)
     else:
-        env = motion_env.make_sb3_env(args.env_id, args.num_envs, **kwargs)
-        env.seed(args.seed)
         model = sb3.SAC(
             "MultiInputPolicy",
             env,

@@ -128,7 +128,7 @@ class CharacterBatch:
         if self.retargeter is not None:
             self.retargeter.reset(i)
         self.stream.reset(i, text, waypoints=route.copy(), start=np.asarray(start, np.float32))
-        self.caption[i] = self.stream.caption_features()[i]
+        self.caption[i] = self.stream.caption_features(i)
         self.just_started[i] = True
 
     def _store_route(self, i: int, route: np.ndarray) -> np.ndarray:
@@ -149,7 +149,10 @@ class CharacterBatch:
         self.stream.set_text(text, index=index)
         for i in range(len(self.texts)) if index is None else [index]:
             self.texts[i] = text
-        self.caption = self.stream.caption_features()
+        if index is None:
+            self.caption = self.stream.caption_features()
+        else:
+            self.caption[index] = self.stream.caption_features(index)
 
     def set_route(self, i: int, route: np.ndarray) -> None:
         """Replace character i's route mid-episode: k = 0 and the character follows the new route."""

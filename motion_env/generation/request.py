@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -423,7 +423,7 @@ def check_batch_request(
 def _with_controls(req: BatchRequest, targets: list, objs: list) -> BatchRequest:
     if all(t is None for t in targets) and not any(objs):
         return req
-    return BatchRequest(req.texts, req.routes, req.starts, req.num_frames, req.seed, targets, objs)
+    return replace(req, targets=targets, objectives=objs)
 
 
 def check_request(

@@ -189,11 +189,13 @@ class MotionStream:
         return list(self._texts)
 
     @torch.no_grad()
-    def caption_features(self) -> np.ndarray:
+    def caption_features(self, index: int | None = None) -> np.ndarray:
         """(B, D) float32: each character's current caption as the path controller reads it (its
-        projection of the sentence embedding; D = 64 for the shipped model). Compact enough for an
-        observation, and it is what sets the pace of walking versus jogging."""
-        return self._pipe.controller.text_proj(self._front.text).cpu().numpy().astype(np.float32)
+        projection of the sentence embedding; D = 64 for the shipped model), or (D,) of character
+        `index`. Compact enough for an observation, and it is what sets the pace of walking
+        versus jogging."""
+        text = self._front.text if index is None else self._front.text[int(self._rows(index)[0])]
+        return self._pipe.controller.text_proj(text).cpu().numpy().astype(np.float32)
 
     # ------------------------------------------------------------------ steering
     def _rows(self, index: int | None) -> np.ndarray:
