@@ -13,6 +13,7 @@ import sys
 import torch
 
 from motion_env.args import write_json
+from motion_env.cli.common import add_caption_reader
 from motion_env.evaluation.suite import evaluate_generator, format_results
 from motion_env.generation.generator import MotionGenerator
 
@@ -25,6 +26,7 @@ def main(argv: list[str] | None = None) -> int:
         "--data", default=None, help="HumanML3D-layout dataset (its test split); omit: synthetic only"
     )
     parser.add_argument("--model", default=None, help="weights directory (default: the shipped model)")
+    add_caption_reader(parser)
     parser.add_argument("--random-model", action="store_true", help="evaluate tiny UNTRAINED random weights")
     parser.add_argument("--max-clips", type=int, default=64, help="held-out takes to evaluate")
     parser.add_argument("--split", default="test", help="held-out split: test (to report) or val (to choose)")
@@ -39,7 +41,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.threads is not None:
         torch.set_num_threads(args.threads)
-    gen = MotionGenerator.from_pretrained("random" if args.random_model else args.model, device=args.device)
+    gen = MotionGenerator.from_pretrained(
+        "random" if args.random_model else args.model, device=args.device, caption_reader=args.caption_reader
+    )
     results = evaluate_generator(
         gen, args.data, max_clips=args.max_clips, seed=args.seed, stream=not args.no_stream,
         steering_seeds=args.steering_seeds, split=args.split,

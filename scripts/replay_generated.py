@@ -14,6 +14,7 @@ from collections import Counter
 
 import torch
 
+from motion_env.cli.common import add_caption_reader
 from motion_env.generation.generator import MotionGenerator
 from motion_env.replay import evaluate
 
@@ -31,11 +32,12 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--model", default=None, help="weights directory (default: the shipped model)")
+    add_caption_reader(parser)
     parser.add_argument("--seeds", type=int, default=4, help="clips per caption")
     parser.add_argument("--json", default=None, help="also write the per-clip verdicts here")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    gen = MotionGenerator.from_pretrained(args.model)
+    gen = MotionGenerator.from_pretrained(args.model, caption_reader=args.caption_reader)
     rows, fails = [], Counter()
     for text, waypoints in CASES:
         for seed in range(args.seeds):

@@ -27,7 +27,7 @@ def _shared_text_encoder(monkeypatch, tmp_path) -> None:
     monkeypatch.setattr(
         encoders,
         "load_text_encoder",
-        lambda name="minilm", **kw: cache.setdefault(name, load(name, **kw)),
+        lambda name="minilm", *args, **kw: cache.setdefault(name, load(name, *args, **kw)),
     )
 
 
@@ -192,8 +192,10 @@ def test_captions_lists_the_vocabulary_and_checks_a_caption(capsys) -> None:
     assert main(["captions", "--check", "a person jogs along happily"]) == 0
     out = capsys.readouterr().out
     assert "nearest actions: run" in out and "no warning" in out
+    assert "the caption adapter reads actions: run" in out
     assert main(["captions", "--check", "une personne court très vite", "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert "French" in report["warning"] and report["similarity"] < report["far_below"]
+    assert "caption adapter reads it as" in report["warning"] and report["adapter_reads"]["actions"]
     assert main(["captions", "--check", "  "]) == 2
     assert "--check is empty" in capsys.readouterr().err

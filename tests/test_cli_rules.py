@@ -32,7 +32,7 @@ def _shared_text_encoder(monkeypatch, tmp_path) -> None:
     monkeypatch.setattr(
         encoders,
         "load_text_encoder",
-        lambda name="minilm", **kw: _ENCODERS.setdefault(name, load(name, **kw)),
+        lambda name="minilm", *args, **kw: _ENCODERS.setdefault(name, load(name, *args, **kw)),
     )
 
 
@@ -244,7 +244,7 @@ def test_the_cache_makes_no_difference(tmp_path, monkeypatch, capsys) -> None:
     import motion_env.text.encoders as encoders
 
     fresh = encoders.MiniLMEncoder  # a new encoder per command: no embedding kept in memory
-    monkeypatch.setattr(encoders, "load_text_encoder", lambda name="minilm", **kw: fresh())
+    monkeypatch.setattr(encoders, "load_text_encoder", lambda name="minilm", *args, **kw: fresh())
     embedded: list[str] = []
     embed = fresh._embed
     monkeypatch.setattr(fresh, "_embed", lambda self, texts: embedded.extend(texts) or embed(self, texts))

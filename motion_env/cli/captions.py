@@ -63,16 +63,19 @@ def _print_vocabulary(vocab: Any, examples: int, as_json: bool) -> None:
 
 def _print_check(vocab: Any, text: str, args: argparse.Namespace) -> None:
     from motion_env.text.encoders import load_text_encoder
-    from motion_env.text.vocabulary import FAR_SIMILARITY, caption_warning
+    from motion_env.text.vocabulary import FAR_SIMILARITY, caption_warning, reading_text
 
     embedding = load_text_encoder(vocab.encoder).encode([text])[0].numpy()
     nearest = vocab.nearest(embedding)
-    warning = caption_warning(text, embedding, vocab)
+    reading = _adapter_reading(text)
+    short = None if reading is None else {k: v[:2] for k, v in reading.items()}
+    warning = caption_warning(text, embedding, vocab, reading="" if short is None else reading_text(short))
     if args.json:
         report = {
             "caption": text, "similarity": nearest.similarity, "far_below": FAR_SIMILARITY,
             "nearest_example": nearest.example, "actions": dict(nearest.actions[:5]),
             "styles": dict(nearest.styles[:5]), "warning": warning,
+            "adapter_reads": None if reading is None else {k: dict(v) for k, v in reading.items()},
         }  # fmt: skip
         print(json.dumps(report, indent=1, ensure_ascii=False))
         return
@@ -83,4 +86,23 @@ def _print_check(vocab: Any, text: str, args: argparse.Namespace) -> None:
     )
     print("nearest actions: " + ", ".join(f"{label} {sim:.2f}" for label, sim in nearest.actions[:5]))
     print("nearest styles: " + ", ".join(f"{label} {sim:.2f}" for label, sim in nearest.styles[:5]))
+    if reading is not None:
+        for key in ("actions", "styles"):
+            probs = ", ".join(f"{label} {p:.2f}" for label, p in reading[key])
+            print(f"the caption adapter reads {key}: {probs}")
     print(f"warning: {warning}" if warning else "no warning")
+
+
+def _adapter_reading(text: str) -> dict[str, list[tuple[str, float]]] | None:
+    """The shipped caption adapter's most likely actions and styles for `text` (None: no adapter)."""
+    from motion_env.generation.caption_readers import ADAPTER_FILE
+    from motion_env.generation.generator import DEFAULT_WEIGHTS
+    from motion_env.models.caption_adapter import CaptionAdapter, CaptionAdapterConfig
+    from motion_env.models.checkpoint import load_checkpoint
+    from motion_env.text.encoders import load_text_encoder
+
+    path = DEFAULT_WEIGHTS / ADAPTER_FILE
+    if not path.is_file():
+        return None
+    adapter, _ = load_checkpoint(path, "caption_adapter", CaptionAdapterConfig, CaptionAdapter)
+    return adapter.read_labels(load_text_encoder(adapter.config.encoder).encode([text]))[0]

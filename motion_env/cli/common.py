@@ -166,6 +166,18 @@ def set_threads(threads: int) -> None:
     torch.set_num_threads(int(threads))
 
 
+CAPTION_READER_HELP = (
+    "which caption adapter reads the captions: default (the weights' caption_adapter.pt), none (the "
+    "models read the text encoder as trained, without the adapter), or a named one such as mpnet "
+    "(caption_adapter.mpnet.pt; needs the optional mpnet encoder)"
+)
+
+
+def add_caption_reader(p: argparse.ArgumentParser) -> None:
+    """``--caption-reader`` (commands that load a generator's weights)."""
+    p.add_argument("--caption-reader", default=None, metavar="NAME", help=CAPTION_READER_HELP)
+
+
 def check_model_choice(args: argparse.Namespace) -> None:
     """``--model`` and ``--random-model`` (commands that load a generator): one at most, and a
     weights directory that exists; checked before anything heavy is imported."""
@@ -186,6 +198,7 @@ def load_generator(args: argparse.Namespace, captions: list[str]) -> Any:
         if args.random_model:
             gen = MotionGenerator.random(seed=args.seed, device=args.device)
         else:
-            gen = MotionGenerator.from_pretrained(args.model, device=args.device)
+            reader = getattr(args, "caption_reader", None)
+            gen = MotionGenerator.from_pretrained(args.model, device=args.device, caption_reader=reader)
         gen.encode_text(sorted(set(captions)))  # the text encoder loads here (unless cached)
     return gen

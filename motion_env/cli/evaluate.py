@@ -9,7 +9,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from motion_env.cli.common import CommandError, add_overwrite, add_threads, check_new_file, set_threads
+from motion_env.cli.common import (
+    CommandError,
+    add_caption_reader,
+    add_overwrite,
+    add_threads,
+    check_new_file,
+    set_threads,
+)
 
 __all__ = ["add_captions_options", "add_control_options", "add_eval", "check_captions_options"]
 
@@ -50,6 +57,7 @@ def add_captions_options(p: argparse.ArgumentParser) -> None:
         "--classifier", default=None,
         help="classifier checkpoint (default: motion_env/weights/classifier.pt; scripts/train_classifier.py)",
     )  # fmt: skip
+    add_caption_reader(p)
     p.add_argument("--json", default=None, help="also write the results to this JSON file")
 
 

@@ -12,6 +12,7 @@ import argparse
 
 from motion_env.cli.common import (
     CommandError,
+    add_caption_reader,
     add_overwrite,
     add_threads,
     check_device,
@@ -48,6 +49,7 @@ def add_generate(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="use tiny UNTRAINED random weights (for testing the plumbing)",
     )
+    add_caption_reader(p)
     p.add_argument("--device", default="cpu", help="torch device (default cpu)")
     add_threads(p)
     p.set_defaults(run=run_generate)

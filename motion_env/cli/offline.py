@@ -112,6 +112,11 @@ _TRAINERS = {
         "ControllerTrainConfig",
         "the path controller (needs no other model)",
     ),
+    "caption-adapter": (
+        "motion_env.training.caption_adapter",
+        "CaptionAdapterTrainConfig",
+        "the caption adapter (text only: other wordings -> what the GPT and controller know)",
+    ),
 }
 
 
@@ -194,9 +199,13 @@ def run_train(args: argparse.Namespace) -> int:
         from motion_env.training.gpt import train_gpt
 
         metrics = train_gpt(args.data, args.vqvae, args.out, config)
-    else:
+    elif args.model == "controller":
         from motion_env.training.controller import train_controller
 
         metrics = train_controller(args.data, args.out, config)
+    else:
+        from motion_env.training.caption_adapter import train_caption_adapter
+
+        metrics = train_caption_adapter(args.data, args.out, config)
     print(json.dumps({"model": args.model, "checkpoint": str(args.out), **metrics}, indent=2))
     return 0

@@ -4,8 +4,9 @@
 For every (action, style) the classifier knows (:mod:`motion_env.evaluation.classifier`), the
 generator makes clips from two kinds of caption, with no waypoints: the project's own caption
 templates (:func:`motion_env.data.captions.bandai.captions_for_bandai`, the training wording) and
-held-out new wordings (:func:`motion_env.evaluation.captions.heldout_caption`, words the training
-captions never use). The classifier scores them, and the real held-out takes of the split, by:
+held-out new wordings (:func:`motion_env.evaluation.captions.heldout_captions`: two sentence
+frames, each with its own words, which no caption any model trains on uses; the clips of a pair
+take them in turn). The classifier scores them, and the real held-out takes of the split, by:
 
 - action recognised: the top action is the named one;
 - style recognised: the top style is the named one;
@@ -29,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from motion_env.data.captions.bandai import captions_for_bandai
-from motion_env.evaluation.captions import RUN_CAPTIONS, heldout_caption
+from motion_env.evaluation.captions import RUN_CAPTIONS, heldout_captions
 from motion_env.evaluation.classifier import LabelledClip, classify, labelled_clips, load_classifier
 from motion_env.evaluation.metrics import heading_change, speed_and_cadence
 from motion_env.motion.skeleton import JOINT_INDEX
@@ -147,7 +148,7 @@ def evaluate_recognition(
                 if name == "templates":
                     batch = captions_for_bandai(action, style, n=seeds, seed=seed)[:seeds]
                 else:
-                    batch = [heldout_caption(action, style, "")] * seeds
+                    batch = _cycle(heldout_captions(action, style), seeds)
                 texts += batch
                 keys += [(action, style)] * len(batch)
             texts_used[action] = sorted(set(texts))
@@ -209,11 +210,15 @@ def evaluate_recognition(
     }
 
 
+def _cycle(items: list[str], n: int) -> list[str]:
+    return [items[k % len(items)] for k in range(n)]
+
+
 def _run_speeds(gen: Any, styles: tuple[str, ...], seeds: int, seed: int, frames: int) -> dict[str, Any]:
     """Speed (m/s, after the first second) of run captions on an untimed straight route."""
     sets = {
         "templates": [c for s in styles for c in captions_for_bandai("run", s, n=seeds, seed=seed)[:seeds]],
-        "other_wordings": [heldout_caption("run", s, "") for s in styles for _ in range(seeds)]
+        "other_wordings": [w for s in styles for w in _cycle(heldout_captions("run", s), seeds)]
         + [c for c in RUN_CAPTIONS for _ in range(seeds)],
     }
     out: dict[str, Any] = {}
@@ -272,7 +277,7 @@ def run_captions(args: Any, command: str) -> dict[str, Any]:
     torch.set_num_threads(args.threads)
     model, ckpt = load_classifier(args.classifier)
     real = labelled_clips(args.data, args.split)
-    gen = MotionGenerator.from_pretrained(args.model)
+    gen = MotionGenerator.from_pretrained(args.model, caption_reader=args.caption_reader)
     t0 = time.perf_counter()
     results = evaluate_recognition(
         gen, model, real, args.seeds, args.seed, log=lambda s: print(s, flush=True)
@@ -281,6 +286,7 @@ def run_captions(args: Any, command: str) -> dict[str, Any]:
         command=command,
         split=args.split,
         classifier={"path": str(args.classifier or "shipped"), "metrics": ckpt.get("metrics")},
+        caption_reader=args.caption_reader or "default",
         seconds=round(time.perf_counter() - t0, 1),
     )
     print()

@@ -6,8 +6,9 @@ hands the same pipeline to :class:`~motion_env.generation.streaming.MotionStream
 stages one token at a time. It also loads and saves the weights.
 
 Weights: a directory holding ``vqvae.pt`` (with the dataset Mean/Std), ``gpt.pt`` and
-``controller.pt`` (:mod:`motion_env.models.checkpoint` files) and optionally ``sampling.json``; the
-shipped default is ``motion_env/weights/`` inside the package.
+``controller.pt`` (:mod:`motion_env.models.checkpoint` files) and optionally ``sampling.json`` and
+``caption_adapter.pt`` (:mod:`motion_env.models.caption_adapter`); the shipped default is
+``motion_env/weights/`` inside the package.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import torch
 
+from motion_env.generation.caption_readers import ADAPTER_FILE, load_caption_reader
 from motion_env.generation.feet import FootPinner
 from motion_env.generation.pipeline import Pipeline
 from motion_env.generation.refine import RefineConfig
@@ -33,6 +35,7 @@ from motion_env.generation.request import (
     check_text,
     check_texts,
 )
+from motion_env.models.caption_adapter import CaptionAdapter
 from motion_env.models.checkpoint import check_text_encoder, load_checkpoint, save_checkpoint
 from motion_env.models.controller import ControllerConfig, PathController
 from motion_env.models.gpt import GPTConfig, TokenGPT
@@ -128,10 +131,12 @@ class MotionGenerator:
         untrained: bool = False,
         device: str | torch.device = "cpu",
         name: str = "",
+        caption_adapter: CaptionAdapter | None = None,
     ) -> None:
         self.pipeline = Pipeline(
             vqvae, gpt, controller, Normalizer(mean, std), sampling or SamplingConfig(),
             text_encoder=text_encoder, text_encoder_name=text_encoder_name, device=device,
+            caption_adapter=caption_adapter,
         )  # fmt: skip
         self.untrained = bool(untrained)
         self.name = name
@@ -148,17 +153,24 @@ class MotionGenerator:
         device: str | torch.device = "cpu",
         text_encoder: Any = None,
         sampling: SamplingConfig | None = None,
+        caption_reader: str | None = None,
     ) -> MotionGenerator:
         """Load a generator from a weights directory.
 
         Args:
             path: directory with ``vqvae.pt``, ``gpt.pt``, ``controller.pt`` (and optionally
-                ``sampling.json``); None = the shipped default model (``motion_env/weights``);
-                ``"random"`` = the untrained test model of :meth:`random` (seed 0).
+                ``sampling.json`` and caption adapters); None = the shipped default model
+                (``motion_env/weights``); ``"random"`` = the untrained test model of
+                :meth:`random` (seed 0).
             device: "cpu", "cuda", ...
             text_encoder: an already loaded text encoder (default: loaded by the name the
-                checkpoints record, lazily, on the first caption).
+                checkpoints (or the caption adapter) record, lazily, on the first caption).
             sampling: overrides ``sampling.json``.
+            caption_reader: which caption adapter reads the captions
+                (:func:`motion_env.generation.caption_readers.caption_readers`):
+                None = ``caption_adapter.pt`` when the folder has one; ``"none"`` = no adapter
+                (the models read the encoder's embedding as they were trained); another name =
+                ``caption_adapter.<name>.pt`` (``"mpnet"``: the optional all-mpnet-base-v2 reader).
         """
         if path is not None and str(path) == RANDOM_MODEL:
             return cls.random(device=device, text_encoder=text_encoder)
@@ -181,7 +193,8 @@ class MotionGenerator:
                 f"{folder}: the GPT was trained with text encoder {records[0]!r}, "
                 f"the controller with {records[1]!r}"
             )
-        if text_encoder is not None:
+        adapter, adapter_ckpt = load_caption_reader(folder, caption_reader, records[0], text_encoder, device)
+        if text_encoder is not None and adapter is None:
             check_text_encoder(gpt_ckpt, text_encoder, folder / WEIGHT_FILES["gpt"])
             check_text_encoder(ctrl_ckpt, text_encoder, folder / WEIGHT_FILES["controller"])
         if sampling is None and (folder / SAMPLING_FILE).is_file():
@@ -193,10 +206,12 @@ class MotionGenerator:
         gen = cls(
             vq, gpt, ctrl, mean=normalizer.mean, std=normalizer.std,
             text_encoder=text_encoder, text_encoder_name=records[0], sampling=sampling,
-            untrained=untrained, device=device, name=str(folder),
+            untrained=untrained, device=device, name=str(folder), caption_adapter=adapter,
         )  # fmt: skip
         for kind, ckpt in (("vqvae", vq_ckpt), ("gpt", gpt_ckpt), ("controller", ctrl_ckpt)):
             gen.training_info[kind] = _training_record(ckpt)
+        if adapter_ckpt is not None:
+            gen.training_info["caption_adapter"] = _training_record(adapter_ckpt)
         gen.pipeline.vocabulary = load_vocabulary(folder)
         return gen
 
@@ -232,6 +247,9 @@ class MotionGenerator:
     def save(self, path: str | Path, half: bool = False) -> Path:
         """Write the generator as a weights directory that :meth:`from_pretrained` reads back.
 
+        The caption adapter in use (if any) is written as ``caption_adapter.pt``, the folder's
+        default reader; other readers of the folder it came from are not copied.
+
         Args:
             path: directory (created; existing checkpoint files in it are replaced).
             half: store float weights as float16 (shipping size; loaded back as float32).
@@ -254,6 +272,14 @@ class MotionGenerator:
             model=self.controller, half=half, text_encoder=record,
             **extra, **self._training_extra("controller"),
         )  # fmt: skip
+        adapter = self.pipeline.caption_adapter
+        if adapter is not None:
+            save_checkpoint(
+                folder / ADAPTER_FILE, kind="caption_adapter", config=adapter.config, model=adapter,
+                half=half, text_encoder=record, **self._training_extra("caption_adapter"),
+            )  # fmt: skip
+        else:
+            (folder / ADAPTER_FILE).unlink(missing_ok=True)  # a stale one would adapt these models
         (folder / SAMPLING_FILE).write_text(json.dumps(asdict(self.sampling), indent=2) + "\n")
         if self.pipeline.vocabulary is not None:  # what the model knows travels with it
             self.pipeline.vocabulary.save(folder)
@@ -280,6 +306,16 @@ class MotionGenerator:
     def std(self) -> np.ndarray:
         """(263,) the training set's feature std."""
         return self.pipeline.normalizer.std
+
+    @property
+    def caption_adapter(self) -> CaptionAdapter | None:
+        """The caption adapter between the text encoder and the models (assignable; None: the
+        encoder's embeddings go to the models as they are)."""
+        return self.pipeline.caption_adapter
+
+    @caption_adapter.setter
+    def caption_adapter(self, adapter: CaptionAdapter | None) -> None:
+        self.pipeline.caption_adapter = adapter
 
     @property
     def sampling(self) -> SamplingConfig:

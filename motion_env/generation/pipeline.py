@@ -4,7 +4,9 @@ A request, already checked (:mod:`motion_env.generation.request`), goes through:
 
 1. **text**: the caption becomes an embedding (:meth:`Pipeline.encode_text`, encoder loaded lazily);
    a caption that is not English, too long or far from what the models know gets a warning, once
-   (:func:`motion_env.text.vocabulary.caption_warning`, :meth:`Pipeline.caption_warning`);
+   (:func:`motion_env.text.vocabulary.caption_warning`, :meth:`Pipeline.caption_warning`); the
+   caption adapter, when the weights have one (:mod:`motion_env.models.caption_adapter`), moves
+   a wording the models never saw to where they answer with the action and style it names;
 2. **root path**: the route is planned (:mod:`motion_env.generation.route`: times for untimed
    waypoints before a timed one, long untimed legs split), then the path controller
    (:mod:`motion_env.models.controller`) rolls out x, z, heading frame by frame, closed loop, from
@@ -46,6 +48,7 @@ from motion_env.generation.recompose import (
 )
 from motion_env.generation.request import BatchRequest
 from motion_env.generation.route import plan_route
+from motion_env.models.caption_adapter import CaptionAdapter
 from motion_env.models.controller import ControllerState, PathController
 from motion_env.models.gpt import TokenGPT
 from motion_env.models.normalizer import Normalizer
@@ -53,7 +56,7 @@ from motion_env.models.path_features import LOOKAHEAD_FRAMES, token_path_feature
 from motion_env.models.sampling import SamplingConfig
 from motion_env.models.vqvae import VQVAE, DecoderStream
 from motion_env.motion.kinematics import with_bone_lengths
-from motion_env.text.vocabulary import Vocabulary, caption_warning
+from motion_env.text.vocabulary import Vocabulary, caption_warning, reading_text
 
 __all__ = ["CONTROLLER_STREAM", "TOKEN_STREAM", "Pipeline", "row_generator"]
 
@@ -86,6 +89,9 @@ class Pipeline:
             (None): loaded lazily by name (``text_encoder_name``) on the first caption.
         text_encoder_name: the encoder the models were trained with ("minilm+sides", ...).
         device: torch device.
+        caption_adapter: the caption adapter between the encoder and the models, or None (the
+            encoder's embedding goes to the models as it is); it may read another encoder, which
+            is then the one loaded.
 
     Attributes:
         vocabulary: what the models know about captions (the weights folder's
@@ -103,6 +109,7 @@ class Pipeline:
         text_encoder: Any = None,
         text_encoder_name: str = "minilm",
         device: str | torch.device = "cpu",
+        caption_adapter: CaptionAdapter | None = None,
     ) -> None:
         if gpt.config.vocab_size != vqvae.config.codebook_size:
             raise ValueError(
@@ -117,11 +124,14 @@ class Pipeline:
         self.vqvae = vqvae.to(self.device).eval()
         self.gpt = gpt.to(self.device).eval()
         self.controller = controller.to(self.device).eval()
+        self._caption_adapter = None if caption_adapter is None else self._checked_adapter(caption_adapter)
         if text_encoder is not None:
             self._check_encoder(text_encoder)
         self.normalizer = normalizer
         self.sampling = sampling
-        self.text_encoder_name = text_encoder_name if text_encoder is None else str(text_encoder.name)
+        self.text_encoder_name = text_encoder_name
+        if text_encoder is not None and caption_adapter is None:
+            self.text_encoder_name = str(text_encoder.name)
         self._text_encoder = text_encoder
         self.vocabulary: Vocabulary | None = None
         self._caption_warnings: dict[str, str] = {}  # caption -> its warning ('' none), made once
@@ -138,11 +148,40 @@ class Pipeline:
         return max(self.rate, LOOKAHEAD_FRAMES)
 
     # ------------------------------------------------------------------ 1. text
-    def _check_encoder(self, encoder: Any) -> None:
-        if int(encoder.dim) != self.gpt.config.text_dim:
+    @property
+    def caption_adapter(self) -> CaptionAdapter | None:
+        """The caption adapter between the text encoder and the models (assignable; None: none)."""
+        return self._caption_adapter
+
+    @caption_adapter.setter
+    def caption_adapter(self, adapter: CaptionAdapter | None) -> None:
+        before = self.reader_name
+        self._caption_adapter = None if adapter is None else self._checked_adapter(adapter)
+        self._caption_warnings.clear()  # they name what the adapter reads
+        if self.reader_name != before:
+            self._text_encoder = None  # the other encoder loads on the next caption
+
+    def _checked_adapter(self, adapter: CaptionAdapter) -> CaptionAdapter:
+        if not isinstance(adapter, CaptionAdapter):
+            raise TypeError(f"caption_adapter must be a CaptionAdapter or None, got {type(adapter).__name__}")
+        if adapter.config.out_dim != self.gpt.config.text_dim:
             raise ValueError(
-                f"text encoder {encoder.name} is {encoder.dim}-d, the models need {self.gpt.config.text_dim}"
+                f"the caption adapter puts out {adapter.config.out_dim}-d embeddings, "
+                f"the models read {self.gpt.config.text_dim}-d"
             )
+        return adapter.to(self.device).eval()
+
+    @property
+    def reader_name(self) -> str:
+        """The text encoder the pipeline reads captions with: the adapter's, else the models'."""
+        return self.text_encoder_name if self.caption_adapter is None else self.caption_adapter.config.encoder
+
+    def _check_encoder(self, encoder: Any) -> None:
+        need = (
+            self.gpt.config.text_dim if self.caption_adapter is None else self.caption_adapter.config.in_dim
+        )
+        if int(encoder.dim) != need:
+            raise ValueError(f"text encoder {encoder.name} is {encoder.dim}-d, the pipeline needs {need}")
 
     @property
     def text_encoder(self) -> Any:
@@ -150,7 +189,7 @@ class Pipeline:
         if self._text_encoder is None:
             from motion_env.text.encoders import load_text_encoder
 
-            encoder = load_text_encoder(self.text_encoder_name)
+            encoder = load_text_encoder(self.reader_name)
             self._check_encoder(encoder)
             self._text_encoder = encoder
         return self._text_encoder
@@ -160,6 +199,7 @@ class Pipeline:
 
         A caption seen for the first time is checked (:meth:`caption_warning`); a problem is a
         ``UserWarning``, once per caption, however often the stream or the environments ask again.
+        The caption adapter, when there is one, then moves the encoder's embeddings.
         """
         emb = torch.as_tensor(self.text_encoder.encode(list(texts)), dtype=torch.float32)
         for text, row in zip(texts, emb, strict=True):
@@ -167,15 +207,23 @@ class Pipeline:
                 self._caption_warnings[text] = message = self._check_caption(text, row.numpy())
                 if message:
                     warnings.warn(message, UserWarning, stacklevel=3)
-        return emb.to(self.device)
+        emb = emb.to(self.device)
+        if self.caption_adapter is not None:
+            with torch.no_grad():
+                emb = self.caption_adapter(emb)
+        return emb
 
     def _check_caption(self, text: str, embedding: np.ndarray) -> str:
         vocab = self.vocabulary
-        # The stored wordings are embedded by the base of the models' encoder ("minilm" of
+        # The stored wordings are embedded by the base of the encoder read ("minilm" of
         # "minilm+sides", whose first half is that embedding); any other encoder: text checks only.
-        if vocab is None or self.text_encoder_name.split("+")[0] != vocab.encoder:
-            return caption_warning(text)
-        return caption_warning(text, embedding, vocab)
+        reading = ""
+        if self.caption_adapter is not None:
+            row = torch.from_numpy(embedding)[None].to(self.device)
+            reading = reading_text(self.caption_adapter.read_labels(row, top=2)[0])
+        if vocab is None or str(self.text_encoder.name).split("+")[0] != vocab.encoder:
+            return caption_warning(text, reading=reading)
+        return caption_warning(text, embedding, vocab, reading=reading)
 
     def caption_warning(self, text: str) -> str:
         """The warning a checked caption gets ('' for none); a caption not encoded yet is encoded

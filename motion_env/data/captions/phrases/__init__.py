@@ -8,6 +8,8 @@
 - ``bandai_styles.json``: style label -> ``adjectives``, ``adverbs``, ``phrases`` and optional
   ``subjects`` / ``neutral`` (see :class:`motion_env.data.captions.bandai.Style`), or the name of
   the style label it is another name for (``"old": "elderly"``).
+- ``paraphrases.json``: the paraphrase bank of the caption adapter's training captions, in words
+  the templates above never use (:mod:`motion_env.data.captions.paraphrases`).
 - ``cmu_descriptions.json``: the word lists the description reader uses to turn terse action
   descriptions into sentences (:mod:`motion_env.data.captions.cmu`).
 - ``pos.json``: the lexicon of the ``word/POS`` tagger (``words``: part of speech -> words, the

@@ -1,0 +1,73 @@
+"""Caption readers: which caption adapter of a weights folder reads the captions.
+
+A weights folder may hold ``caption_adapter.pt`` (its default reader) and named ones,
+``caption_adapter.<name>.pt`` (the shipped model: ``mpnet``, on the optional all-mpnet-base-v2
+encoder). :meth:`MotionGenerator.from_pretrained(caption_reader=...)
+<motion_env.generation.generator.MotionGenerator.from_pretrained>` picks one; ``"none"`` picks
+none (the models read the text encoder's embedding as they were trained).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from motion_env.models.caption_adapter import CaptionAdapter, CaptionAdapterConfig
+from motion_env.models.checkpoint import load_checkpoint
+
+__all__ = ["ADAPTER_FILE", "caption_readers", "load_caption_reader"]
+
+ADAPTER_FILE = "caption_adapter.pt"  # the default reader; optional
+
+
+def caption_readers(folder: str | Path) -> list[str]:
+    """The readers `folder` offers: ``"default"`` for ``caption_adapter.pt``, the ``<name>`` of
+    each ``caption_adapter.<name>.pt``, and ``"none"``."""
+    folder = Path(folder)
+    names = ["default"] if (folder / ADAPTER_FILE).is_file() else []
+    names += sorted(
+        f.name[len("caption_adapter.") : -len(".pt")] for f in folder.glob("caption_adapter.*.pt")
+    )
+    return [*names, "none"]
+
+
+def _reader_path(folder: Path, reader: str | None) -> Path | None:
+    if reader is None:
+        return folder / ADAPTER_FILE if (folder / ADAPTER_FILE).is_file() else None
+    if reader == "none":
+        return None
+    path = folder / (ADAPTER_FILE if reader == "default" else f"caption_adapter.{reader}.pt")
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"{folder} has no caption reader {reader!r} ({path.name}); "
+            f"it offers: {', '.join(caption_readers(folder))}"
+        )
+    return path
+
+
+def load_caption_reader(
+    folder: Path, reader: str | None, models_encoder: str, text_encoder: Any = None, device: Any = "cpu"
+) -> tuple[CaptionAdapter | None, dict[str, Any] | None]:
+    """The caption adapter of `reader` in `folder` and its checkpoint ((None, None): no adapter).
+
+    Args:
+        reader: None (the default reader when there is one), ``"none"``, ``"default"`` or a name.
+        models_encoder: the text encoder the folder's GPT and controller were trained with; the
+            adapter must put out their embeddings.
+        text_encoder: an encoder the caller wants to use; it must be the one the adapter reads.
+    """
+    path = _reader_path(folder, reader)
+    if path is None:
+        return None, None
+    adapter, ckpt = load_checkpoint(path, "caption_adapter", CaptionAdapterConfig, CaptionAdapter, device)
+    target = (ckpt.get("text_encoder") or {}).get("name")
+    if target != models_encoder:
+        raise ValueError(
+            f"{path} adapts captions for models trained with {target!r}, "
+            f"these were trained with {models_encoder!r}"
+        )
+    if text_encoder is not None and text_encoder.name != adapter.config.encoder:
+        raise ValueError(
+            f"{path} reads captions with {adapter.config.encoder!r}, but {text_encoder.name!r} was given"
+        )
+    return adapter, ckpt
