@@ -93,3 +93,21 @@ def test_caption_readers_are_chosen_by_name(tmp_path: Path) -> None:
     assert MotionGenerator.from_pretrained(folder, caption_reader="none").caption_adapter is None
     with pytest.raises(FileNotFoundError, match="no caption reader 'mpnet' .* it offers: other, none"):
         MotionGenerator.from_pretrained(folder, caption_reader="mpnet")
+
+
+def test_the_shipped_adapter_reads_held_out_wordings() -> None:
+    """The shipped reader's action head on the held-out wordings, as text (measured: 0.84 and 0.74
+    for the two frames; with the side vector telling left from right)."""
+    from motion_env.evaluation.captions import ACTION_WORDS, STYLE_WORDS, heldout_captions
+
+    gen = MotionGenerator.from_pretrained()
+    assert gen.caption_adapter is not None
+    pairs = [(a, s) for a in ACTION_WORDS for s in STYLE_WORDS]
+    for frame in (0, 1):
+        texts = [heldout_captions(a, s)[frame] for a, s in pairs]
+        emb = gen.pipeline.text_encoder.encode(texts)
+        read = gen.caption_adapter.read_labels(emb, top=1)
+        hits = sum(r["actions"][0][0] == a for r, (a, _) in zip(read, pairs, strict=True))
+        assert hits / len(pairs) >= 0.65, (frame, hits)
+    unlabelled = gen.caption_adapter.read_labels(gen.pipeline.text_encoder.encode(["a man plays basketball"]))
+    assert unlabelled[0]["actions"][0][0] == "(unlabelled)"
