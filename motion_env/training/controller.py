@@ -3,8 +3,10 @@
 Each sample is a window of a real clip: the controller starts at the clip's root at the window's
 first frame and rolls out through differentiable integration, frame by frame, with the waypoint
 features recomputed from its *predicted* position (so it learns to correct its own drift). The
-waypoints are the clip's own future root positions: timed at random spacing (1-3 s), untimed,
-mixed, dense, a single far one, or none at all (then it must follow the caption's natural motion).
+waypoints are the clip's own future root positions: timed at random spacing (1-3 s), untimed
+(1-3 s apart, as the shipped controller was trained, so that their spacing tells the pace; or,
+with ``untimed_by="distance"``, 1.5-6 m apart along the path whatever the pace), mixed, dense, a
+single far one, or none at all (then it must follow the caption's natural motion).
 Losses: position (weighted up at waypoint frames), local velocity, turn rate (zero-turn target on
 still frames), heading, turn smoothness and acceleration.
 
@@ -43,6 +45,9 @@ from motion_env.training.config import TrainConfig
 CHECKPOINT_KIND = "controller"
 # A frame is "still" below this root speed (m/s): its turn target is zero (no spin on the spot).
 STILL_SPEED = 0.25
+# Untimed waypoints are this many metres apart along the path (uniform), whatever the pace: their
+# spacing must not tell the controller how fast to go (the route planner splits longer legs).
+UNTIMED_SPACING = (1.5, 6.0)
 # Waypoint sampling modes and their probabilities.
 MODES: dict[str, float] = {
     "timed": 0.40,
@@ -115,10 +120,31 @@ class Batch:
     free: torch.Tensor  # (B,) True when the sample has no waypoints
 
 
-def _sample_waypoints(
-    path: np.ndarray, start: int, window: int, mode: str, rng: np.random.Generator
+def _frames_by_distance(path: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Frames of `path` (from its first frame) at random distances along it, UNTIMED_SPACING apart."""
+    step = np.linalg.norm(np.diff(path[:, :2], axis=0), axis=1)
+    walked = np.concatenate([[0.0], np.cumsum(step)])
+    marks = [rng.uniform(*UNTIMED_SPACING)]
+    while marks[-1] < walked[-1]:
+        marks.append(marks[-1] + rng.uniform(*UNTIMED_SPACING))
+    frames = np.unique(np.searchsorted(walked, marks[:-1]))
+    frames = frames[(frames >= 1) & (frames < len(path))]
+    return frames if len(frames) else np.array([len(path) - 1])
+
+
+def sample_waypoints(
+    path: np.ndarray,
+    start: int,
+    window: int,
+    mode: str,
+    rng: np.random.Generator,
+    untimed_by: str = "time",
 ) -> tuple[np.ndarray | None, np.ndarray]:
     """Waypoints from a clip's own future root positions.
+
+    `untimed_by`: untimed waypoints (mode "untimed") are spaced by "distance" along the path
+    (:data:`UNTIMED_SPACING`, whatever the pace) or, as the first controllers were trained, by
+    "time" (1-3 s apart, so that their spacing tells the pace).
 
     Returns:
         (waypoints (K, 3) with times relative to `start` (NaN where untimed) or None for mode
@@ -127,7 +153,9 @@ def _sample_waypoints(
     n = path.shape[0] - start  # frames available from the window start
     if mode == "none" or n < 2:
         return None, np.zeros(0, np.int64)
-    if mode == "dense":
+    if mode == "untimed" and untimed_by == "distance":
+        frames = _frames_by_distance(path[start:], rng)
+    elif mode == "dense":
         every = int(rng.choice([1, 2, 4]))
         frames = np.arange(every, n, every)
     elif mode == "single":
@@ -147,11 +175,17 @@ def _sample_waypoints(
 
 
 def sample_batch(
-    data: PathData, rng: np.random.Generator, batch_size: int, window: int, text_noise: float = 0.0
+    data: PathData,
+    rng: np.random.Generator,
+    batch_size: int,
+    window: int,
+    text_noise: float = 0.0,
+    untimed_by: str = "time",
 ) -> Batch:
     """Draw B windows with their waypoints (see the module docstring).
 
-    `text_noise` jitters the caption embeddings (:func:`motion_env.text.jitter_embeddings`).
+    `text_noise` jitters the caption embeddings (:func:`motion_env.text.jitter_embeddings`);
+    `untimed_by` spaces untimed waypoints (:func:`sample_waypoints`).
     """
     lengths = np.array([len(p) for p in data.paths], dtype=np.float64)
     probs = lengths / lengths.sum()
@@ -166,7 +200,7 @@ def sample_batch(
         m[: len(seg)] = 1.0
         seg = np.concatenate([seg, np.repeat(seg[-1:], window - len(seg), 0)])
         mode = str(rng.choice(names, p=weights / weights.sum()))
-        wp, frames = _sample_waypoints(path, s, window, mode, rng)
+        wp, frames = sample_waypoints(path, s, window, mode, rng, untimed_by)
         if wp is not None and frames[-1] < window - 1:
             m[frames[-1] + 1 :] = 0.0  # after the final waypoint the arrive gating holds the character
         w = np.zeros(window, np.float32)
@@ -279,7 +313,7 @@ def evaluate_controller(
             path = data.paths[clip]
             s = int(rng.integers(0, max(1, len(path) - window) + 1))
             n_valid = min(window, len(path) - s)
-            wp, frames = _sample_waypoints(path, s, window, mode, rng)
+            wp, frames = sample_waypoints(path, s, window, mode, rng)
             wps.append(None if wp is None or frames[0] >= n_valid else wp[frames < n_valid])
             text.append(data.embeddings[int(rng.choice(data.captions[clip]))])
             starts.append(path[s])
@@ -315,6 +349,7 @@ class ControllerTrainConfig(TrainConfig):
     warmup: int = 50  # warm-up steps of the learning rate
     grad_clip: float = 1.0  # gradient norm clip
     text_noise: float = 0.3  # expected norm of the noise added to caption embeddings (0: off)
+    untimed_by: str = "time"  # untimed waypoints 1-3 s apart (time, as shipped) or 1.5-6 m (distance)
     encoder: str = DEFAULT_TEXT_ENCODER  # text encoder name (motion_env.text.load_text_encoder)
     eval_windows: int = 256  # val windows per evaluation
     log_every: int = 25  # steps between loss lines in the log (running averages)
@@ -326,6 +361,10 @@ class ControllerTrainConfig(TrainConfig):
         check_at_least(self, 2, "window")
         check_at_least(self, 0, "warmup", "text_noise")
         check_above(self, 0, "lr", "grad_clip")
+        if self.untimed_by not in ("distance", "time"):
+            raise ValueError(
+                f"ControllerTrainConfig.untimed_by must be 'distance' or 'time', got {self.untimed_by!r}"
+            )
 
 
 # The name of the controller's settings before each trainer had its TrainConfig
@@ -357,7 +396,9 @@ def fit(
         model.train()
         rng = np.random.default_rng([settings.seed, step])
         gen = torch.Generator(device=dev).manual_seed(settings.seed * 1_000_003 + step)
-        batch = sample_batch(data, rng, settings.batch_size, settings.window, settings.text_noise)
+        batch = sample_batch(
+            data, rng, settings.batch_size, settings.window, settings.text_noise, settings.untimed_by
+        )
         loss, parts = controller_loss(model, batch, gen)
         optimizer.zero_grad(set_to_none=True)
         loss.backward()

@@ -10,20 +10,28 @@ from pathlib import Path
 
 import pytest
 
+import motion_env.training.caption_adapter as adapter_trainer
 import motion_env.training.controller as controller_trainer
 import motion_env.training.gpt as gpt_trainer
 import motion_env.training.vqvae as vqvae_trainer
 from motion_env.cli import main
+from motion_env.training.caption_adapter import CaptionAdapterTrainConfig
 from motion_env.training.config import TrainConfig
 from motion_env.training.controller import ControllerTrainConfig
 from motion_env.training.gpt import GPTTrainConfig
 from motion_env.training.vqvae import VQVAETrainConfig
 
-CONFIGS = {"vqvae": VQVAETrainConfig, "gpt": GPTTrainConfig, "controller": ControllerTrainConfig}
+CONFIGS = {
+    "vqvae": VQVAETrainConfig,
+    "gpt": GPTTrainConfig,
+    "controller": ControllerTrainConfig,
+    "caption-adapter": CaptionAdapterTrainConfig,
+}
 TRAINERS = {
     "vqvae": (vqvae_trainer, "train_vqvae"),
     "gpt": (gpt_trainer, "train_gpt"),
     "controller": (controller_trainer, "train_controller"),
+    "caption-adapter": (adapter_trainer, "train_caption_adapter"),
 }
 
 # The options `motion-env train MODEL` took before its trainer had a config (--data, --out and
@@ -37,6 +45,7 @@ FLAGS_BEFORE = {
         "steps", "batch-size", "lr", "window", "encoder", "text-noise", "device", "seed", "max-minutes",
         "no-resume",
     ],
+    "caption-adapter": ["steps", "batch-size", "lr", "encoder", "text-noise", "device", "seed", "no-resume"],
 }  # fmt: skip
 VALUES = {
     "steps": ("7", "steps", 7),
@@ -65,7 +74,14 @@ def test_defaults_are_the_trainers_defaults() -> None:
     assert ControllerTrainConfig().to_dict() == {
         "seed": 0, "device": "cpu", "resume": True, "log_every": 25, "save_every": 50, "eval_every": 0,
         "max_minutes": math.inf, "progress": True, "steps": 2000, "batch_size": 64, "lr": 1e-3, "window": 100,
-        "warmup": 50, "grad_clip": 1.0, "text_noise": 0.3, "encoder": "minilm+sides", "eval_windows": 256,
+        "warmup": 50, "grad_clip": 1.0, "text_noise": 0.3, "untimed_by": "time", "encoder": "minilm+sides",
+        "eval_windows": 256,
+    }  # fmt: skip
+    assert CaptionAdapterTrainConfig().to_dict() == {
+        "seed": 0, "device": "cpu", "resume": True, "log_every": 250, "save_every": 500, "eval_every": 0,
+        "max_minutes": math.inf, "progress": True, "steps": 3000, "batch_size": 256, "lr": 1e-3,
+        "paraphrases": 120, "prior": 0.5, "text_noise": 0.3, "label_weight": 0.1, "hidden": 512, "layers": 2,
+        "dropout": 0.1, "temperature": 1.0, "encoder": "minilm+sides",
     }  # fmt: skip
 
 
@@ -149,7 +165,7 @@ def test_every_field_is_an_option(model: str, tmp_path: Path, monkeypatch: pytes
             argv += [flag, "2.5"]
             expected[f.name] = 2.5
         elif isinstance(f.default, str):
-            value = {"device": "cuda:1", "encoder": "clip"}[f.name]
+            value = {"device": "cuda:1", "encoder": "clip", "untimed_by": "distance"}[f.name]
             argv += [flag, value]
             expected[f.name] = value
         else:

@@ -133,3 +133,21 @@ def test_fit_is_deterministic_and_resumable() -> None:
     assert done == 4
     for a, b in zip(straight.state_dict().values(), resumed.state_dict().values(), strict=True):
         torch.testing.assert_close(a, b)
+
+
+def test_untimed_waypoints_are_spaced_by_distance_whatever_the_pace() -> None:
+    from motion_env.training.controller import UNTIMED_SPACING, sample_waypoints
+
+    rng = np.random.default_rng(0)
+    for speed in (0.8, 3.0):  # m/s: a walk and a run, 20 s straight ahead
+        t = np.arange(400, dtype=np.float32) / 20.0
+        path = np.stack([np.zeros_like(t), t * speed, np.zeros_like(t)], axis=1)
+        wp, frames = sample_waypoints(path, 0, 80, "untimed", rng, untimed_by="distance")
+        assert np.isnan(wp[:, 2]).all() and (np.diff(frames) > 0).all()
+        gaps = np.linalg.norm(np.diff(wp[:, :2], axis=0), axis=1)
+        lo, hi = UNTIMED_SPACING
+        assert ((gaps > lo - 0.2) & (gaps < hi + 0.2)).all(), gaps
+        _, by_time = sample_waypoints(path, 0, 80, "untimed", rng)  # the default, as shipped
+        assert ((np.diff(by_time) >= 20) & (np.diff(by_time) <= 60)).all()
+    with pytest.raises(ValueError, match="untimed_by"):
+        ControllerTrainConfig(untimed_by="space")
