@@ -62,14 +62,26 @@ def _print_vocabulary(vocab: Any, examples: int, as_json: bool) -> None:
 
 
 def _print_check(vocab: Any, text: str, args: argparse.Namespace) -> None:
+    from motion_env.generation.caption_readers import load_caption_reader
+    from motion_env.generation.generator import DEFAULT_WEIGHTS
     from motion_env.text.encoders import load_text_encoder
     from motion_env.text.vocabulary import FAR_SIMILARITY, caption_warning, reading_text
 
-    embedding = load_text_encoder(vocab.encoder).encode([text])[0].numpy()
+    adapter, _ = load_caption_reader(DEFAULT_WEIGHTS, None)
+    # One encoder when the adapter reads the vocabulary's ("minilm+sides" starts with "minilm").
+    shared = adapter is not None and adapter.config.encoder.split("+")[0] == vocab.encoder
+    encoder = load_text_encoder(adapter.config.encoder if shared else vocab.encoder)
+    row = encoder.encode([text])
+    embedding = row[0].numpy()
     nearest = vocab.nearest(embedding)
-    reading = _adapter_reading(text)
-    short = None if reading is None else {k: v[:2] for k, v in reading.items()}
-    warning = caption_warning(text, embedding, vocab, reading="" if short is None else reading_text(short))
+    reading = None
+    if adapter is not None:
+        row = row if shared else load_text_encoder(adapter.config.encoder).encode([text])
+        reading = adapter.read_labels(row)[0]
+    top2 = None if reading is None else {k: v[:2] for k, v in reading.items()}
+    warning = caption_warning(
+        text, embedding, vocab, reading=None if top2 is None else lambda: reading_text(top2)
+    )
     if args.json:
         report = {
             "caption": text, "similarity": nearest.similarity, "far_below": FAR_SIMILARITY,
@@ -91,18 +103,3 @@ def _print_check(vocab: Any, text: str, args: argparse.Namespace) -> None:
             probs = ", ".join(f"{label} {p:.2f}" for label, p in reading[key])
             print(f"the caption adapter reads {key}: {probs}")
     print(f"warning: {warning}" if warning else "no warning")
-
-
-def _adapter_reading(text: str) -> dict[str, list[tuple[str, float]]] | None:
-    """The shipped caption adapter's most likely actions and styles for `text` (None: no adapter)."""
-    from motion_env.generation.caption_readers import ADAPTER_FILE
-    from motion_env.generation.generator import DEFAULT_WEIGHTS
-    from motion_env.models.caption_adapter import CaptionAdapter, CaptionAdapterConfig
-    from motion_env.models.checkpoint import load_checkpoint
-    from motion_env.text.encoders import load_text_encoder
-
-    path = DEFAULT_WEIGHTS / ADAPTER_FILE
-    if not path.is_file():
-        return None
-    adapter, _ = load_checkpoint(path, "caption_adapter", CaptionAdapterConfig, CaptionAdapter)
-    return adapter.read_labels(load_text_encoder(adapter.config.encoder).encode([text]))[0]

@@ -46,14 +46,18 @@ def _reader_path(folder: Path, reader: str | None) -> Path | None:
 
 
 def load_caption_reader(
-    folder: Path, reader: str | None, models_encoder: str, text_encoder: Any = None, device: Any = "cpu"
+    folder: Path,
+    reader: str | None,
+    models_encoder: str | None = None,
+    text_encoder: Any = None,
+    device: Any = "cpu",
 ) -> tuple[CaptionAdapter | None, dict[str, Any] | None]:
     """The caption adapter of `reader` in `folder` and its checkpoint ((None, None): no adapter).
 
     Args:
         reader: None (the default reader when there is one), ``"none"``, ``"default"`` or a name.
         models_encoder: the text encoder the folder's GPT and controller were trained with; the
-            adapter must put out their embeddings.
+            adapter must put out their embeddings (None: not checked).
         text_encoder: an encoder the caller wants to use; it must be the one the adapter reads.
     """
     path = _reader_path(folder, reader)
@@ -61,7 +65,7 @@ def load_caption_reader(
         return None, None
     adapter, ckpt = load_checkpoint(path, "caption_adapter", CaptionAdapterConfig, CaptionAdapter, device)
     target = (ckpt.get("text_encoder") or {}).get("name")
-    if target != models_encoder:
+    if models_encoder is not None and target != models_encoder:
         raise ValueError(
             f"{path} adapts captions for models trained with {target!r}, "
             f"these were trained with {models_encoder!r}"

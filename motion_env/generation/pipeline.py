@@ -31,6 +31,7 @@ every stage once over the whole clip) and :class:`~motion_env.generation.streami
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from collections.abc import Sequence
@@ -217,13 +218,15 @@ class Pipeline:
         vocab = self.vocabulary
         # The stored wordings are embedded by the base of the encoder read ("minilm" of
         # "minilm+sides", whose first half is that embedding); any other encoder: text checks only.
-        reading = ""
-        if self.caption_adapter is not None:
-            row = torch.from_numpy(embedding)[None].to(self.device)
-            reading = reading_text(self.caption_adapter.read_labels(row, top=2)[0])
+        # What the adapter reads is worked out only for a caption that warns.
+        reading = None if self.caption_adapter is None else functools.partial(self._reading, embedding)
         if vocab is None or str(self.text_encoder.name).split("+")[0] != vocab.encoder:
             return caption_warning(text, reading=reading)
         return caption_warning(text, embedding, vocab, reading=reading)
+
+    def _reading(self, embedding: np.ndarray) -> str:
+        row = torch.from_numpy(embedding)[None].to(self.device)
+        return reading_text(self.caption_adapter.read_labels(row, top=2)[0])
 
     def caption_warning(self, text: str) -> str:
         """The warning a checked caption gets ('' for none); a caption not encoded yet is encoded

@@ -136,7 +136,11 @@ class CaptionAdapter(nn.Module):
 
     def forward(self, emb: torch.Tensor) -> torch.Tensor:
         """(N, in_dim) caption embeddings -> (N, out_dim) embeddings for the GPT and the controller."""
-        regressed, a_logits, s_logits = self.train_outputs(emb)
+        return self.mix(*self.train_outputs(emb))
+
+    def mix(self, regressed: torch.Tensor, a_logits: torch.Tensor, s_logits: torch.Tensor) -> torch.Tensor:
+        """The output from :meth:`train_outputs`: the prototypes weighted by the pairs' probability,
+        and the regression weighted by p(unlabelled)."""
         if not self.config.pairs:
             return regressed
         a_logp, s_logp = a_logits.log_softmax(-1), s_logits.log_softmax(-1)

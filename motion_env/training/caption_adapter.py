@@ -254,7 +254,7 @@ def adapter_loss(
     targets, and the cross-entropy of the two label heads."""
     regressed, a_logits, s_logits = model.train_outputs(emb)
     terms = {
-        "out": (model(emb) - target).pow(2).sum(-1).mean(),
+        "out": (model.mix(regressed, a_logits, s_logits) - target).pow(2).sum(-1).mean(),
         "dist": (regressed - target).pow(2).sum(-1).mean(),
         "action": F.cross_entropy(a_logits, actions),
     }
@@ -271,8 +271,8 @@ def evaluate_adapter(model: CaptionAdapter, emb: torch.Tensor, ex: AdapterExampl
     """Squared distance of the output to the targets, and label accuracy (labelled captions)."""
     was_training = model.training
     model.eval()
-    out = model(emb)
-    a_logits, s_logits = model.labels(emb)
+    regressed, a_logits, s_logits = model.train_outputs(emb)
+    out = model.mix(regressed, a_logits, s_logits)
     model.train(was_training)
     target = torch.from_numpy(ex.targets)
     lab = torch.from_numpy(ex.styles) >= 0
