@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 from motion_env import motion
 from motion_env.envs.registration import register_envs
 from motion_env.io import load_bvh, load_motion
+from motion_env.joint_targets import JointTargets
 from motion_env.motion import skeleton
 from motion_env.motion.types import Motion
 
@@ -23,6 +24,7 @@ if TYPE_CHECKING:
 
 __version__ = "0.1.0"
 __all__ = [
+    "JointTargets",
     "Motion",
     "MotionGenerator",
     "load_bvh",

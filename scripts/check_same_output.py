@@ -40,6 +40,27 @@ def outputs() -> dict[str, np.ndarray]:
         out[f"batch_{n}"] = m.joints
     out["root_paths"] = gen.root_paths(["a person walks"], ROUTE, num_frames=100, seed=3, snap=False)
 
+    # Controlled clips: joint targets (a wrist and the pelvis) and objectives, and a batch where
+    # one row has no control.
+    targets = np.full((80, 22, 3), np.nan, np.float32)
+    targets[40, 21] = [0.3, 1.6, 1.2]
+    targets[60, 0] = [0.5, 0.9, 2.0]
+    out["controlled"] = gen.generate(
+        "a person walks", waypoints=None, num_frames=80, seed=6, joint_targets=targets
+    ).joints
+    objectives = [
+        motion_env.objectives.KeepOut(center=(0.0, 2.0), radius=0.5),
+        motion_env.objectives.HeightLimit(joint="head", max_height=1.4, frames=(20, 50)),
+    ]
+    out["objectives"] = gen.generate(
+        "a person walks", waypoints=[[0, 4, 80]], num_frames=80, seed=8, objectives=objectives
+    ).joints
+    mixed = gen.generate_batch(
+        ["a person walks", "a person jogs"], None, num_frames=60, seed=9, joint_targets=[targets[:60], None]
+    )
+    for n, m in enumerate(mixed):
+        out[f"mixed_{n}"] = m.joints
+
     stream = gen.stream(["a person walks", "a person jogs"], waypoints=[ROUTE, None], seed=5)
     frames = []
     for t in range(90):
@@ -49,6 +70,13 @@ def outputs() -> dict[str, np.ndarray]:
             stream.set_waypoints([[1, 6], [-2, 8]], index=0)
         if t == 70:
             stream.reset(1, "a person waves", start=[1.0, 1.0, 0.5])
+        if t == 12:
+            hand = np.full((30, 22, 3), np.nan, np.float32)
+            hand[20, 21] = [0.4, 1.5, 1.5]
+            stream.set_joint_targets(hand, index=0)
+            stream.set_objectives(
+                [motion_env.objectives.HeightLimit(joint="head", max_height=1.5, frames=(40, 60))], index=1
+            )
         frames.append(stream.step())
     out["stream"] = np.stack(frames)
 

@@ -17,9 +17,10 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from motion_env.envs.config import EnvConfig, check_actions, validate_start
-from motion_env.envs.routes import sample_route, sample_start
+from motion_env.envs.episodes import sample_route, sample_start
 from motion_env.envs.waypoints import action_space, build_characters, caption_size, observation_space
 from motion_env.generation.request import check_text
+from motion_env.joint_targets import JointTargets
 from motion_env.motion.skeleton import FPS
 from motion_env.motion.trajectory import validate_waypoints
 
@@ -220,7 +221,10 @@ class WaypointsVectorEnv(VectorEnv):
         self._batch.set_text(text, index=None if index is None else int(index))  # the stream checks it
 
     def set_joint_targets(
-        self, targets: np.ndarray | None, index: int | None = None, first_frame: int | None = None
+        self,
+        targets: JointTargets | np.ndarray | None,
+        index: int | None = None,
+        first_frame: int | None = None,
     ) -> None:
         """Joint targets of one character (or all, index=None), as :meth:`WaypointsEnv.set_joint_targets`."""
         self._check_index(index)

@@ -19,8 +19,9 @@ from motion_env.envs.config import (
     validate_text_pool,
 )
 from motion_env.envs.core import CharacterBatch
-from motion_env.envs.routes import sample_route, sample_start
+from motion_env.envs.episodes import sample_route, sample_start
 from motion_env.generation.request import check_text
+from motion_env.joint_targets import JointTargets
 from motion_env.motion.skeleton import FPS, NUM_JOINTS
 from motion_env.motion.trajectory import MAX_COORDINATE, validate_waypoints
 
@@ -370,9 +371,12 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self._require_episode()
         self._batch.set_route(0, validate_waypoints(waypoints))
 
-    def set_joint_targets(self, targets: np.ndarray | None, first_frame: int | None = None) -> None:
-        """Joint targets from now on (replacing earlier ones): (F, 22, 3) world metres, NaN where a
-        joint is free, row k = episode frame ``first_frame + k`` (default: the next frame).
+    def set_joint_targets(
+        self, targets: JointTargets | np.ndarray | None, first_frame: int | None = None
+    ) -> None:
+        """Joint targets from now on (replacing earlier ones): a :class:`motion_env.JointTargets`
+        in episode frames, or (F, 22, 3) world metres, NaN where a joint is free, row k = episode
+        frame ``first_frame + k`` (default: the next frame).
 
         The stream's rules (:meth:`motion_env.generation.streaming.MotionStream.set_joint_targets`):
         a target set at least 10 frames (0.5 s) before its frame is met there exactly; frames

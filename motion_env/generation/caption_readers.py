@@ -1,10 +1,17 @@
-"""Caption readers: which caption adapter of a weights folder reads the captions.
+"""Caption readers: what reads a caption for the generator's models, picked by ``caption_reader=``.
 
-A weights folder may hold ``caption_adapter.pt`` (its default reader) and named ones,
-``caption_adapter.<name>.pt`` (the shipped model: ``mpnet``, on the optional all-mpnet-base-v2
-encoder). :meth:`MotionGenerator.from_pretrained(caption_reader=...)
+A *caption reader* is a text encoder plus the *caption adapter* trained for it
+(:mod:`motion_env.models.caption_adapter`): the encoder embeds the caption, the adapter moves the
+embedding to where the GPT and the controller answer with its meaning. A weights folder holds its
+readers as adapter files, named for the reader: ``caption_adapter.pt`` (the ``"default"`` reader)
+and ``caption_adapter.<name>.pt`` (the shipped model: ``mpnet``, on the optional all-mpnet-base-v2
+encoder). An adapter records the encoder it reads (``config.encoder``), and that encoder is loaded
+by name (:func:`motion_env.text.encoders.load_text_encoder`), so a new reader needs no code here:
+train an adapter for any known encoder (``motion-env train caption-adapter --encoder clip``) and put
+it into the folder as ``caption_adapter.<name>.pt`` (docs/captions.md).
+:meth:`MotionGenerator.from_pretrained(caption_reader=...)
 <motion_env.generation.generator.MotionGenerator.from_pretrained>` picks one; ``"none"`` picks
-none (the models read the text encoder's embedding as they were trained).
+none (the models read their own encoder's embedding, as they were trained).
 """
 
 from __future__ import annotations
@@ -17,12 +24,12 @@ from motion_env.models.checkpoint import load_checkpoint
 
 __all__ = ["ADAPTER_FILE", "caption_readers", "load_caption_reader"]
 
-ADAPTER_FILE = "caption_adapter.pt"  # the default reader; optional
+ADAPTER_FILE = "caption_adapter.pt"  # the adapter of the default reader; optional
 
 
 def caption_readers(folder: str | Path) -> list[str]:
-    """The readers `folder` offers: ``"default"`` for ``caption_adapter.pt``, the ``<name>`` of
-    each ``caption_adapter.<name>.pt``, and ``"none"``."""
+    """The caption readers `folder` offers: ``"default"`` for ``caption_adapter.pt``, the ``<name>``
+    of each ``caption_adapter.<name>.pt``, and ``"none"``."""
     folder = Path(folder)
     names = ["default"] if (folder / ADAPTER_FILE).is_file() else []
     names += sorted(
@@ -52,7 +59,8 @@ def load_caption_reader(
     text_encoder: Any = None,
     device: Any = "cpu",
 ) -> tuple[CaptionAdapter | None, dict[str, Any] | None]:
-    """The caption adapter of `reader` in `folder` and its checkpoint ((None, None): no adapter).
+    """The caption adapter of the caption reader `reader` in `folder`, and its checkpoint ((None,
+    None): no adapter). The reader's text encoder is the one the adapter names (``config.encoder``).
 
     Args:
         reader: None (the default reader when there is one), ``"none"``, ``"default"`` or a name.

@@ -14,7 +14,6 @@ Weights: a directory holding ``vqvae.pt`` (with the dataset Mean/Std), ``gpt.pt`
 from __future__ import annotations
 
 import json
-import math
 import warnings
 from collections.abc import Sequence
 from dataclasses import asdict
@@ -25,7 +24,6 @@ import numpy as np
 import torch
 
 from motion_env.generation.caption_readers import ADAPTER_FILE, load_caption_reader
-from motion_env.generation.feet import FootPinner
 from motion_env.generation.pipeline import Pipeline
 from motion_env.generation.refine import RefineConfig
 from motion_env.generation.request import (
@@ -42,7 +40,7 @@ from motion_env.models.gpt import GPTConfig, TokenGPT
 from motion_env.models.normalizer import Normalizer
 from motion_env.models.sampling import SamplingConfig
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
-from motion_env.motion.skeleton import FEATURE_DIM, FOOT_CONTACT, FPS, NUM_JOINTS
+from motion_env.motion.skeleton import FEATURE_DIM, FPS, NUM_JOINTS
 from motion_env.motion.types import Motion
 from motion_env.text.vocabulary import load_vocabulary
 
@@ -424,36 +422,17 @@ class MotionGenerator:
         return self._clips(req)
 
     def _clips(self, req: BatchRequest) -> list[Motion]:
-        """Every stage of the pipeline, once over whole clips."""
-        if req.targets is not None:
-            return self._controlled_clips(req)
-        p = self.pipeline
-        n_tok = math.ceil(req.num_frames / p.rate)
-        emb = p.encode_text(req.texts)
-        paths = p.clip_paths(emb, req)
-        body = p.decode(p.sample_tokens(emb, paths, n_tok, req.seed))  # (B, n_tok * rate, 263)
+        """The pipeline's stages over whole clips (:meth:`Pipeline.clips`), as Motions."""
         motions = []
-        for i, text in enumerate(req.texts):
-            joints, _ = p.compose(body[i], paths[i], n_tok * p.rate)
-            joints = FootPinner(1).apply(0, joints, body[i][:, FOOT_CONTACT])[: req.num_frames]
+        for i, clip in enumerate(self.pipeline.clips(req, self.refine_config)):
             meta = self._meta(req.seed, i)
-            motions.append(Motion(joints=joints, fps=FPS, text=text, waypoints=req.routes[i], meta=meta))
-        return motions
-
-    def _controlled_clips(self, req: BatchRequest) -> list[Motion]:
-        """The clips of a request with joint targets or objectives (:mod:`.refine`)."""
-        from motion_env.generation.refine import controlled_clips
-
-        motions = []
-        for i, (joints, report) in enumerate(controlled_clips(self.pipeline, req, self.refine_config)):
-            meta = self._meta(req.seed, i)
-            if report is not None:
-                meta["control"] = report.summary()
-                if report.message:
+            if clip.report is not None:
+                meta["control"] = clip.report.summary()
+                if clip.report.message:
                     who = "" if len(req.texts) == 1 else f"character {i}: "
-                    warnings.warn(f"{who}{report.message}", UserWarning, stacklevel=3)
+                    warnings.warn(f"{who}{clip.report.message}", UserWarning, stacklevel=3)
             motions.append(
-                Motion(joints=joints, fps=FPS, text=req.texts[i], waypoints=req.routes[i], meta=meta)
+                Motion(joints=clip.joints, fps=FPS, text=req.texts[i], waypoints=req.routes[i], meta=meta)
             )
         return motions
 

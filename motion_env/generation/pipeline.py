@@ -1,32 +1,32 @@
 """The generation pipeline: one object holds the models and runs the stages (C-T2M's decoupled design).
 
-A request, already checked (:mod:`motion_env.generation.request`), goes through:
+The stages, in order (:meth:`Pipeline.clips` runs them over whole clips, and is the one place
+that writes the order out; :class:`~motion_env.generation.streaming.MotionStream` runs the same
+stage methods causally, one token at a time, in the same order):
 
-1. **text**: the caption becomes an embedding (:meth:`Pipeline.encode_text`, encoder loaded lazily);
-   a caption that is not English, too long or far from what the models know gets a warning, once
-   (:func:`motion_env.text.vocabulary.caption_warning`, :meth:`Pipeline.caption_warning`); the
-   caption adapter, when the weights have one (:mod:`motion_env.models.caption_adapter`), moves
-   a wording the models never saw to where they answer with the action and style it names;
-2. **root path**: the route is planned (:mod:`motion_env.generation.route`: times for untimed
-   waypoints before a timed one, long untimed legs split), then the path controller
+1. **text** (:meth:`Pipeline.encode_text`): the caption becomes an embedding (encoder loaded
+   lazily); a caption that is not English, too long or far from what the models know gets a
+   warning, once (:func:`motion_env.text.vocabulary.caption_warning`); the caption reader's
+   adapter (:mod:`motion_env.models.caption_adapter`) moves a wording the models never saw to
+   where they answer with the action and style it names;
+2. **path** (:meth:`Pipeline.plan_paths`): the route is planned
+   (:mod:`motion_env.generation.route_planning`), the path controller
    (:mod:`motion_env.models.controller`) rolls out x, z, heading frame by frame, closed loop, from
-   the caption and the waypoints
-   (:meth:`Pipeline.init_controller`, :meth:`Pipeline.rollout`); the path is bent exactly through
-   the waypoints it should pass (:mod:`motion_env.generation.recompose`);
-3. **tokens**: per-token path features (:mod:`motion_env.models.path_features`) and the caption
-   condition the body GPT, which samples motion tokens one by one
-   (:meth:`Pipeline.sample_tokens`, :mod:`motion_env.models.sampling`);
-4. **decode**: the VQ-VAE decodes tokens to normalised features, which the
-   :class:`~motion_env.models.normalizer.Normalizer` turns back into 263-d features
-   (:meth:`Pipeline.decode`, :meth:`Pipeline.decode_next` for the stream);
-5. **body on the path**: the decoded body, relative to its root, is placed on the root path and
-   rebuilt on the skeleton's bone lengths (:meth:`Pipeline.compose`: decoded legs come out up to
-   9 cm short);
-6. **feet**: feet the decoder marks as planted are pinned (:class:`~motion_env.generation.feet.FootPinner`).
-
-Two thin drivers run it: :class:`~motion_env.generation.generator.MotionGenerator` (whole clips,
-every stage once over the whole clip) and :class:`~motion_env.generation.streaming.MotionStream`
-(the same stages causally, one token at a time).
+   the caption and the waypoints (towards the joint targets when there is no route), and the path
+   is bent exactly through the waypoints (:mod:`motion_env.generation.recompose`);
+3. **tokens** (:meth:`Pipeline.sample_tokens`): per-token path features
+   (:mod:`motion_env.models.path_features`) and the caption condition the body GPT, which samples
+   motion tokens one by one (:mod:`motion_env.models.sampling`);
+4. **decode** (:meth:`Pipeline.decode`, :meth:`Pipeline.decode_next` for the stream): the VQ-VAE
+   decodes tokens to features (its :class:`~motion_env.models.normalizer.Normalizer` undoes the
+   normalisation);
+5. **compose** (:meth:`Pipeline.compose`): the decoded body, relative to its root, is placed on
+   the root path and rebuilt on the skeleton's bone lengths (decoded legs come out up to 9 cm short);
+6. **feet** (:class:`~motion_env.generation.feet.FootPinner`): feet the decoder marks as planted
+   are pinned (:meth:`Pipeline.place_clip` runs 5 and 6);
+7. **refine** (:func:`motion_env.generation.refine.refine_clip`, only for clips with joint targets
+   or objectives): test-time optimisation of the body, then the closed-form finish
+   (:mod:`motion_env.generation.closed_form`); it re-runs 5 and 6 around its corrections.
 """
 
 from __future__ import annotations
@@ -35,20 +35,23 @@ import functools
 import math
 import warnings
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 import torch
 
+from motion_env.generation.closed_form import implied_route
+from motion_env.generation.feet import FootPinner
 from motion_env.generation.recompose import (
     align_heading_to_travel,
     local_pose_from_features,
     recompose,
     snap_route,
 )
+from motion_env.generation.refine import RefineConfig, Refined, refine_clip
 from motion_env.generation.request import BatchRequest
-from motion_env.generation.route import plan_route
+from motion_env.generation.route_planning import plan_route
 from motion_env.models.caption_adapter import CaptionAdapter
 from motion_env.models.controller import ControllerState, PathController
 from motion_env.models.gpt import TokenGPT
@@ -57,9 +60,10 @@ from motion_env.models.path_features import LOOKAHEAD_FRAMES, token_path_feature
 from motion_env.models.sampling import SamplingConfig
 from motion_env.models.vqvae import VQVAE, DecoderStream
 from motion_env.motion.kinematics import with_bone_lengths
+from motion_env.motion.skeleton import FOOT_CONTACT
 from motion_env.text.vocabulary import Vocabulary, caption_warning, reading_text
 
-__all__ = ["CONTROLLER_STREAM", "TOKEN_STREAM", "Pipeline", "row_generator"]
+__all__ = ["CONTROLLER_STREAM", "TOKEN_STREAM", "Clip", "Pipeline", "row_generator"]
 
 # The random streams of one character (see row_generator).
 CONTROLLER_STREAM, TOKEN_STREAM = 0, 1
@@ -77,6 +81,19 @@ def row_generator(seed: int, row: int, stream: int) -> torch.Generator:
     g = torch.Generator(device="cpu")
     g.manual_seed(int(state[0]) << 32 | int(state[1]))
     return g
+
+
+@dataclass
+class Clip:
+    """One whole clip out of :meth:`Pipeline.clips`.
+
+    Attributes:
+        joints: (T, 22, 3) float32 world joints.
+        report: how the refinement met the clip's joint targets and objectives (None: it had none).
+    """
+
+    joints: np.ndarray
+    report: Refined | None = None
 
 
 class Pipeline:
@@ -147,6 +164,36 @@ class Pipeline:
     def path_horizon(self) -> int:
         """Frames of root path a token needs beyond its first frame (its own span and one second)."""
         return max(self.rate, LOOKAHEAD_FRAMES)
+
+    # ------------------------------------------------------------------ the stages, in order
+    def clips(self, req: BatchRequest, refine: RefineConfig) -> list[Clip]:
+        """Whole clips of a checked request: every stage, in order, once over the whole clip."""
+        n_tok = math.ceil(req.num_frames / self.rate)
+        controlled = [False] * len(req.texts)
+        if req.joint_targets is not None:
+            controlled = [t is not None or bool(o) for t, o in zip(req.joint_targets, req.objectives)]
+        emb = self.encode_text(req.texts)  # 1. text
+        routes, paths = self.plan_paths(emb, req)  # 2. path
+        logits: list[torch.Tensor] | None = [] if refine.space == "logits" and any(controlled) else None
+        tokens = self.sample_tokens(emb, paths, n_tok, req.seed, logits)  # 3. tokens
+        body = self.decode(tokens)  # 4. decode
+        out = []
+        for i in range(len(req.texts)):
+            if not controlled[i]:
+                _, joints = self.place_clip(body[i], paths[i], n_tok * self.rate)  # 5. compose, 6. feet
+                out.append(Clip(joints[: req.num_frames]))
+                continue
+            targets = req.joint_targets[i]
+            refined = refine_clip(  # 7. refine (5 and 6 run again around its corrections)
+                self, refine, body[i], tokens[i],
+                None if logits is None else torch.stack([step[i] for step in logits]),
+                paths[i], routes[i],
+                np.full((req.num_frames, 22, 3), np.nan, np.float32) if targets is None
+                else targets.dense(req.num_frames),
+                list(req.objectives[i]),
+            )  # fmt: skip
+            out.append(Clip(refined.joints, refined))
+        return out
 
     # ------------------------------------------------------------------ 1. text
     @property
@@ -262,7 +309,7 @@ class Pipeline:
     def clip_paths(self, text_emb: torch.Tensor, req: BatchRequest, snap: bool = True) -> np.ndarray:
         """Root paths (B, n_path, 3) for clips of ``req.num_frames``, bent through the routes if `snap`.
 
-        The routes are planned first (:func:`~motion_env.generation.route.plan_route`). The path
+        The routes are planned first (:func:`~motion_env.generation.route_planning.plan_route`). The path
         reaches one horizon past the last token's first frame, as in streaming, so the last
         tokens' path features are never cut short.
         """
@@ -272,6 +319,21 @@ class Pipeline:
         if snap:
             roots = np.stack([snap_route(r, w) for r, w in zip(roots, routes, strict=True)])
         return roots
+
+    def plan_paths(self, text_emb: torch.Tensor, req: BatchRequest) -> tuple[list, np.ndarray]:
+        """The planned routes (B entries, None or (K, 3)) and the root paths (B, n_path, 3) of whole
+        clips, bent through the routes. Without a route, a character with joint targets is
+        steered to where they are (:func:`~motion_env.generation.closed_form.implied_route`); the
+        path is bent through the request's own route only, the targets bend it later (refine)."""
+        steer = req.routes
+        if req.joint_targets is not None:
+            steer = [
+                implied_route(t.dense(req.num_frames)) if r is None and t is not None else r
+                for r, t in zip(req.routes, req.joint_targets, strict=True)
+            ]
+        raw = self.clip_paths(text_emb, replace(req, routes=steer), snap=False)
+        routes = [plan_route(r, s[:2]) for r, s in zip(req.routes, req.starts, strict=True)]
+        return routes, np.stack([snap_route(p, r) for p, r in zip(raw, routes, strict=True)])
 
     # ------------------------------------------------------------------ 3. tokens
     def sample_tokens(
@@ -321,3 +383,12 @@ class Pipeline:
         path = align_heading_to_travel(root_path)
         joints = with_bone_lengths(recompose(local, path, face_travel=False)[..., :num_frames, :, :])
         return joints, path[..., :num_frames, :]
+
+    # ------------------------------------------------------------------ 6. feet
+    def place_clip(
+        self, features: np.ndarray, root_path: np.ndarray, num_frames: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """A whole clip's body on its path (:meth:`compose`), then its feet pinned where the decoder
+        marks them planted: (num_frames, 22, 3) joints before and after the pinning."""
+        joints, _ = self.compose(features, root_path, num_frames)
+        return joints, FootPinner(1).apply(0, joints, features[:, FOOT_CONTACT])

@@ -18,7 +18,6 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 from scipy.ndimage import gaussian_filter1d
 
-from motion_env.motion.checks import check_joints
 from motion_env.motion.features import features_to_joints
 from motion_env.motion.kinematics import rotate_y
 from motion_env.motion.skeleton import FPS
@@ -28,6 +27,7 @@ from motion_env.motion.trajectory import (
     validate_waypoints,
     wrap_angle,
 )
+from motion_env.motion.validation import check_joints
 
 # An untimed waypoint is snapped to only where the controller's path passes it this close (m): one
 # the path has not reached (yet) is left to the controller rather than dragging the path to it.

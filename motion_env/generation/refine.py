@@ -4,7 +4,7 @@ One clip (one character) at a time, after its tokens are sampled (:func:`refine_
 
 1. **root**: the root path is bent so the pelvis passes its targets and the other targeted joints
    line up horizontally, then around :class:`~motion_env.objectives.KeepOut` cylinders and inside
-   :class:`~motion_env.objectives.StayInside` polygons (:mod:`motion_env.generation.targets`);
+   :class:`~motion_env.objectives.StayInside` polygons (:mod:`motion_env.generation.closed_form`);
 2. **optimise** (:func:`optimise_body`): gradient steps on what the generator produced, with the
    path held fixed, through the VQ-VAE decoder and a differentiable copy of the recompose
    (:mod:`motion_env.generation.torch_body`). ``RefineConfig.space`` picks the variables:
@@ -20,7 +20,7 @@ One clip (one character) at a time, after its tokens are sampled (:func:`refine_
    foot contacts kept still, and the prior term;
 3. **finish**: the optimised features are composed on the path exactly as without targets, the
    feet are pinned (:class:`~motion_env.generation.feet.FootPinner`), and closed-form IK on the
-   limb chains (:func:`~motion_env.generation.targets.finish`) puts each targeted joint on its
+   limb chains (:func:`~motion_env.generation.closed_form.solve_limbs`) puts each targeted joint on its
    target; KeepOut and StayInside are checked and the detour widened if a joint still crosses.
 
 What the finish could not meet (a target out of the body's reach, two targets further apart than
@@ -32,31 +32,32 @@ The choice between the two spaces (and the defaults below) was made by measureme
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 
-from motion_env.generation.feet import FootPinner
-from motion_env.generation.recompose import align_heading_to_travel
-from motion_env.generation.targets import (
+from motion_env.generation.closed_form import (
     MISS_TOLERANCE,
     bend_root,
     describe_misses,
     detour,
-    finish,
+    solve_limbs,
     target_errors,
 )
+from motion_env.generation.recompose import align_heading_to_travel
 from motion_env.generation.torch_body import frame_yaw, local_pose_torch, place_on_path_torch
-from motion_env.motion.checks import check_positive_ints
 from motion_env.motion.skeleton import FOOT_CONTACT, FOOT_JOINTS
+from motion_env.motion.validation import check_positive_ints
 from motion_env.objectives import HeightLimit, KeepOut, StayInside
+
+if TYPE_CHECKING:  # the pipeline runs this stage; the stage only reads the pipeline's parts
+    from motion_env.generation.pipeline import Pipeline
 
 __all__ = [
     "SPACES",
     "RefineConfig",
     "Refined",
-    "check_objective_values",
-    "controlled_clips",
     "optimise_body",
     "refine_clip",
 ]
@@ -148,8 +149,49 @@ class Refined:
         return "; ".join(parts)
 
 
+class _Variables:
+    """What the optimiser changes: the decoder's latents ("latent") or token logits ("logits"),
+    the latent they give, and the prior term that keeps them near what was sampled."""
+
+    def __init__(
+        self,
+        config: RefineConfig,
+        codebook: torch.Tensor,
+        codes: torch.Tensor,
+        gpt_logits: torch.Tensor | None,
+    ) -> None:
+        self.space = config.space
+        self.codebook = codebook
+        if self.space == "logits":
+            if gpt_logits is None:
+                raise ValueError("RefineConfig.space='logits' needs the GPT's logits")
+            self.prior = torch.log_softmax(gpt_logits.to(codebook.device).float(), dim=-1)
+            # The sampled token on top (95 % of the mass), so the clip starts as it was sampled.
+            others = torch.logsumexp(self.prior.scatter(1, codes[:, None], -torch.inf), dim=1)
+            lift = (np.log(0.95 / 0.05) + others - self.prior.gather(1, codes[:, None])[:, 0]).clamp_min(0.0)
+            self.start = self.prior.clone()
+            self.start[torch.arange(len(codes)), codes] += lift
+            self.scale = 1.0
+        else:
+            self.start = codebook[codes]
+            self.scale = float(codebook.pow(2).mean().sqrt())
+        self.param = self.start.clone().requires_grad_(True)
+
+    def latent(self) -> torch.Tensor:
+        """(N, code_dim) the decoder's input."""
+        if self.space == "logits":
+            return torch.softmax(self.param, dim=-1) @ self.codebook
+        return self.param
+
+    def prior_cost(self) -> torch.Tensor:
+        if self.space == "logits":
+            q = torch.softmax(self.param, dim=-1)
+            return (q * (torch.log_softmax(self.param, dim=-1) - self.prior)).sum(-1).mean()
+        return (self.param - self.start).pow(2).sum(-1).mean() / self.codebook.pow(2).sum(-1).mean()
+
+
 def optimise_body(
-    pipe: object,
+    pipe: Pipeline,
     codes: torch.Tensor,
     gpt_logits: torch.Tensor | None,
     features: np.ndarray,
@@ -171,80 +213,61 @@ def optimise_body(
     Returns:
         (N * rate, 263) float32 features of the optimised clip, and the steps taken.
     """
-    vq = pipe.vqvae
-    dev = pipe.device
-    t_len = targets.shape[0]
-    codebook = vq.quantizer.codebook.detach()
-    mean = torch.as_tensor(pipe.normalizer.mean, device=dev)
-    std = torch.as_tensor(pipe.normalizer.std, device=dev)
+    vq, dev, t_len = pipe.vqvae, pipe.device, targets.shape[0]
     yaw = torch.as_tensor(frame_yaw(features), device=dev)
     path_t = torch.as_tensor(path, dtype=torch.float32, device=dev)
     known = torch.as_tensor(~np.isnan(targets[..., 0]), device=dev)
     goal = torch.as_tensor(np.nan_to_num(targets), dtype=torch.float32, device=dev)
     flags = features[:t_len, FOOT_CONTACT] > 0.5
     still = torch.as_tensor(flags[1:] & flags[:-1], device=dev)  # (T-1, 4) planted on both frames
-    codes = codes.to(dev)
+    var = _Variables(config, vq.quantizer.codebook.detach(), codes.to(dev), gpt_logits)
 
-    if config.space == "logits":
-        if gpt_logits is None:
-            raise ValueError("RefineConfig.space='logits' needs the GPT's logits")
-        prior = torch.log_softmax(gpt_logits.to(dev).float(), dim=-1)
-        # The sampled token on top (95 % of the mass), so the clip starts as it was sampled.
-        others = torch.logsumexp(prior.scatter(1, codes[:, None], -torch.inf), dim=1)
-        lift = (np.log(0.95 / 0.05) + others - prior.gather(1, codes[:, None])[:, 0]).clamp_min(0.0)
-        start = prior.clone()
-        start[torch.arange(len(codes)), codes] += lift
-        param = start.clone().requires_grad_(True)
-        scale = 1.0
-    else:
-        start = codebook[codes]
-        param = start.clone().requires_grad_(True)
-        scale = float(codebook.pow(2).mean().sqrt())
+    def world() -> torch.Tensor:  # (T, 22, 3) the body the variables give, on the fixed path
+        feats = pipe.normalizer.denormalize_torch(vq.decode_latent(var.latent()[None])[0])
+        return place_on_path_torch(local_pose_torch(feats, yaw), path_t)[:t_len]
 
-    def latent() -> torch.Tensor:
-        if config.space == "logits":
-            return torch.softmax(param, dim=-1) @ codebook
-        return param
-
-    def prior_cost() -> torch.Tensor:
-        if config.space == "logits":
-            q = torch.softmax(param, dim=-1)
-            return (q * (torch.log_softmax(param, dim=-1) - prior)).sum(-1).mean()
-        return (param - start).pow(2).sum(-1).mean() / codebook.pow(2).sum(-1).mean()
-
-    opt = torch.optim.Adam([param], lr=config.lr * scale)
+    opt = torch.optim.Adam([var.param], lr=config.lr * var.scale)
     steps = 0
     with torch.no_grad():
-        first = place_on_path_torch(
-            local_pose_torch(vq._decode_latent(latent()[None])[0] * std + mean, yaw), path_t
-        )
-        first = first[:t_len]
+        first = world()
         step0 = first[1:] - first[:-1]
     with torch.enable_grad():
         for step in range(1, config.steps + 1):
             steps = step
-            feats = vq._decode_latent(latent()[None])[0] * std + mean
-            world = place_on_path_torch(local_pose_torch(feats, yaw), path_t)[:t_len]
-            dist2 = (world - goal).pow(2).sum(-1)[known]
-            cost = dist2.mean() / TARGET_SCALE**2 if len(dist2) else world.new_zeros(())
+            joints = world()
+            dist2 = (joints - goal).pow(2).sum(-1)[known]
             if len(dist2) and not objectives and float(dist2.detach().max().sqrt()) < config.tolerance:
                 break
-            for objective in objectives:
-                cost = cost + config.objective_weight * objective(world) / TARGET_SCALE**2
-            feet = world[:, list(FOOT_JOINTS)]
-            slide = (feet[1:] - feet[:-1])[..., [0, 2]].pow(2).sum(-1)[still]
-            if len(slide):  # planted feet do not slide
-                cost = cost + config.contact_weight * slide.mean() / TARGET_SCALE**2
-            if config.smooth_weight > 0 and len(world) > 1:
-                jitter = ((world[1:] - world[:-1]) - step0).pow(2).sum(-1)
-                cost = cost + config.smooth_weight * jitter.mean() / VELOCITY_SCALE**2
-            cost = cost + config.prior_weight * prior_cost()
+            cost = _cost(joints, dist2, step0, still, objectives, config)
+            cost = cost + config.prior_weight * var.prior_cost()
             opt.zero_grad()
             cost.backward()
             opt.step()
     with torch.no_grad():
-        out = pipe.normalizer.denormalize(vq._decode_latent(latent()[None])[0])
+        out = pipe.normalizer.denormalize(vq.decode_latent(var.latent()[None])[0])
     return out.astype(np.float32), steps
+
+
+def _cost(
+    world: torch.Tensor,
+    dist2: torch.Tensor,
+    step0: torch.Tensor,
+    still: torch.Tensor,
+    objectives: list,
+    config: RefineConfig,
+) -> torch.Tensor:
+    """The refinement's cost without the prior: targets, objectives, planted feet, smoothness."""
+    cost = dist2.mean() / TARGET_SCALE**2 if len(dist2) else world.new_zeros(())
+    for objective in objectives:
+        cost = cost + config.objective_weight * objective(world) / TARGET_SCALE**2
+    feet = world[:, list(FOOT_JOINTS)]
+    slide = (feet[1:] - feet[:-1])[..., [0, 2]].pow(2).sum(-1)[still]
+    if len(slide):  # planted feet do not slide
+        cost = cost + config.contact_weight * slide.mean() / TARGET_SCALE**2
+    if config.smooth_weight > 0 and len(world) > 1:
+        jitter = ((world[1:] - world[:-1]) - step0).pow(2).sum(-1)
+        cost = cost + config.smooth_weight * jitter.mean() / VELOCITY_SCALE**2
+    return cost
 
 
 def _violations(objectives: list, joints: np.ndarray) -> list[float]:
@@ -259,7 +282,7 @@ def _violations(objectives: list, joints: np.ndarray) -> list[float]:
 
 
 def refine_clip(
-    pipe: object,
+    pipe: Pipeline,
     config: RefineConfig,
     features: np.ndarray,
     codes: torch.Tensor,
@@ -299,9 +322,8 @@ def refine_clip(
     planted = contacts.reshape(t_len, 2, 2).any(axis=2)
     margin = 0.0
     for _ in range(4):
-        joints, _ = pipe.compose(features, path, n)
-        pinned = FootPinner(1).apply(0, joints, features[:, FOOT_CONTACT])[:t_len]
-        final = finish(pinned, targets, limits, planted)
+        joints, pinned = pipe.place_clip(features, path, n)
+        final = solve_limbs(pinned[:t_len], targets, limits, planted)
         worst = max([float(o.violation(final).max(initial=0.0)) for o in areas], default=0.0)
         if worst <= 1e-4:
             break
@@ -318,96 +340,3 @@ def refine_clip(
     if failed:
         message = "; ".join([m for m in [message, *failed] if m])
     return Refined(final, errors, where, violations, steps, message)
-
-
-def check_objective_values(objectives: tuple, num_frames: int, what: str = "objectives") -> None:
-    """Evaluate each callable objective once on a still clip: it must return a finite 0-d (or
-    one-element) torch tensor that depends on the joints. ValueError / TypeError naming it otherwise."""
-    for k, obj in enumerate(objectives):
-        if isinstance(obj, KeepOut | StayInside | HeightLimit):
-            continue
-        probe = torch.zeros(num_frames, 22, 3, requires_grad=True)
-        try:
-            with torch.enable_grad():
-                value = obj(probe)
-        except Exception as exc:  # the user's code: say which objective failed, keep the cause
-            raise ValueError(
-                f"{what}[{k}] ({obj!r}) raised {type(exc).__name__} on a (T, 22, 3) tensor: {exc}"
-            ) from exc
-        if not isinstance(value, torch.Tensor):
-            raise TypeError(
-                f"{what}[{k}] returned a {type(value).__name__}; it must return a scalar torch.Tensor "
-                "computed "
-                "from the joints (so the refinement can follow its gradient)"
-            )
-        if value.numel() != 1:
-            raise ValueError(
-                f"{what}[{k}] returned a tensor of shape {tuple(value.shape)}; it must return a scalar"
-            )
-        if not torch.isfinite(value).all():
-            raise ValueError(
-                f"{what}[{k}] returned {float(value)} on a still clip; it must return a finite cost"
-            )
-        if not value.requires_grad:
-            raise ValueError(
-                f"{what}[{k}] returned a value that does not depend on the joints (no gradient): the "
-                "refinement could not lower it"
-            )
-
-
-def controlled_clips(
-    pipe: object, req: object, config: RefineConfig
-) -> list[tuple[np.ndarray, Refined | None]]:
-    """Whole clips of a request with joint targets or objectives (rows without them are generated
-    exactly as without the refinement): per row, the (T, 22, 3) joints and the report (or None)."""
-    import math
-    from dataclasses import replace
-
-    from motion_env.generation.recompose import snap_route
-    from motion_env.generation.route import plan_route
-    from motion_env.generation.targets import implied_route
-
-    t_len = req.num_frames
-    for i, objs in enumerate(req.objectives):
-        check_objective_values(
-            objs, t_len, "objectives" if len(req.texts) == 1 else f"objectives of character {i}"
-        )
-    rate = pipe.rate
-    n_tok = math.ceil(t_len / rate)
-    emb = pipe.encode_text(req.texts)
-    controlled = [t is not None or bool(o) for t, o in zip(req.targets, req.objectives, strict=True)]
-    # The path controller walks to where the targets are when the caller gave no route.
-    ctrl_routes = [
-        implied_route(t) if r is None and t is not None else r
-        for r, t in zip(req.routes, req.targets, strict=True)
-    ]
-    raw = pipe.clip_paths(emb, replace(req, routes=ctrl_routes), snap=False)
-    routes = [plan_route(r, s[:2]) for r, s in zip(req.routes, req.starts, strict=True)]
-    paths = np.stack([snap_route(p, r) for p, r in zip(raw, routes, strict=True)])
-    logits: list[torch.Tensor] = []
-    want_logits = config.space == "logits" and any(controlled)
-    tokens = pipe.sample_tokens(emb, paths, n_tok, req.seed, logits if want_logits else None)
-    body = pipe.decode(tokens)
-    out: list[tuple[np.ndarray, Refined | None]] = []
-    for i in range(len(req.texts)):
-        if not controlled[i]:
-            joints, _ = pipe.compose(body[i], paths[i], n_tok * rate)
-            out.append((FootPinner(1).apply(0, joints, body[i][:, FOOT_CONTACT])[:t_len], None))
-            continue
-        targets = (
-            req.targets[i] if req.targets[i] is not None else np.full((t_len, 22, 3), np.nan, np.float32)
-        )
-        row_logits = torch.stack([step[i] for step in logits]) if want_logits else None
-        refined = refine_clip(
-            pipe,
-            config,
-            body[i],
-            tokens[i],
-            row_logits,
-            paths[i],
-            routes[i],
-            targets,
-            list(req.objectives[i]),
-        )
-        out.append((refined.joints, refined))
-    return out

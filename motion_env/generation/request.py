@@ -26,10 +26,13 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
+import torch
 
-from motion_env.motion.checks import check_finite
+from motion_env.joint_targets import JointTargets
 from motion_env.motion.skeleton import FPS, JOINT_NAMES, NUM_JOINTS
 from motion_env.motion.trajectory import MAX_COORDINATE, validate_waypoints
+from motion_env.motion.validation import check_finite
+from motion_env.objectives import HeightLimit, KeepOut, StayInside
 
 MAX_FRAMES = 12_000
 """The longest clip a request may ask for: 10 minutes at 20 fps."""
@@ -48,6 +51,7 @@ __all__ = [
     "check_batch_request",
     "check_feasible",
     "check_joint_targets",
+    "check_objective_values",
     "check_objectives",
     "check_request",
     "check_num_frames",
@@ -259,28 +263,34 @@ def warn_past_the_end(route: np.ndarray | None, num_frames: int, what: str = "wa
 
 def check_joint_targets(
     targets: Any, num_frames: int | None, what: str = "joint_targets", first_frame: int = 0
-) -> np.ndarray | None:
-    """None or a (T, 22, 3) array of world targets (metres, NaN = the joint is free at that frame).
+) -> JointTargets | None:
+    """None, a :class:`~motion_env.joint_targets.JointTargets`, or a dense (T, 22, 3) array of world
+    targets (metres, NaN = the joint is free at that frame).
 
     Args:
-        targets: the array; T must equal `num_frames` (None: any T >= 1, the stream's targets).
-        num_frames: the clip's length.
+        targets: the targets; a dense array has T = `num_frames` rows (None: any T >= 1, the
+            stream's targets), row k being frame ``first_frame + k``; a JointTargets names its
+            frames itself (clip frames, or the stream's episode frames).
+        num_frames: the clip's length (None: the stream, any frame).
         what: the argument's name in messages.
-        first_frame: the frame of row 0 (the stream's targets start anywhere), for messages.
+        first_frame: the frame of a dense array's row 0.
 
     Returns:
-        The (T, 22, 3) float32 targets, or None when there are none (None, or every entry NaN).
+        The targets as a JointTargets, or None when there are none (None, or every entry NaN).
         Raises ValueError naming the frame and joint of the first bad entry: a wrong shape (a
         target outside the clip's frames), an infinite value, a joint given only some of its
         coordinates, a coordinate beyond MAX_COORDINATE.
     """
     if targets is None:
         return None
+    if isinstance(targets, JointTargets):
+        return _check_sparse_targets(targets, num_frames, what)
     try:
         arr = np.asarray(targets, dtype=np.float64)
     except (TypeError, ValueError):
         raise ValueError(
-            f"{what} must be a numeric array of shape (T, {NUM_JOINTS}, 3), NaN where a joint is free"
+            f"{what} must be a JointTargets or a numeric array of shape (T, {NUM_JOINTS}, 3), NaN where "
+            "a joint is free"
         ) from None
     if arr.ndim != 3 or arr.shape[1:] != (NUM_JOINTS, 3):
         raise ValueError(
@@ -311,22 +321,41 @@ def check_joint_targets(
             f"{what} gives only some coordinates at {name(f, j)}: {arr[f, j].tolist()}; give x, y and z, "
             f"or NaN for all three (a height alone: motion_env.objectives.HeightLimit)"
         )
-    far = np.argwhere(np.nan_to_num(np.abs(arr)).max(axis=-1) > MAX_COORDINATE)
-    if len(far):
-        f, j = far[0]
-        raise ValueError(
-            f"{what} at {name(f, j)} is {arr[f, j].tolist()}: coordinates must lie within "
-            f"{MAX_COORDINATE:g} m of the origin"
-        )
+    _check_coordinates(np.nan_to_num(arr).reshape(-1, 3), lambda k: name(*divmod(k, NUM_JOINTS)), what)
     if nan.all():
         return None
-    return arr.astype(np.float32)
+    return JointTargets.from_dense(arr.astype(np.float32), first_frame)
 
 
-def check_objectives(objectives: Any, what: str = "objectives") -> tuple[Any, ...]:
+def _check_coordinates(positions: np.ndarray, name: Any, what: str) -> None:
+    far = np.flatnonzero(np.abs(positions).max(axis=-1) > MAX_COORDINATE)
+    if len(far):
+        raise ValueError(
+            f"{what} at {name(int(far[0]))} is {positions[far[0]].tolist()}: coordinates must lie within "
+            f"{MAX_COORDINATE:g} m of the origin"
+        )
+
+
+def _check_sparse_targets(targets: JointTargets, num_frames: int | None, what: str) -> JointTargets | None:
+    def name(k: int) -> str:
+        j = int(targets.joints[k])
+        return f"frame {int(targets.frames[k])}, joint {j} ({JOINT_NAMES[j]})"
+
+    if num_frames is not None and len(targets) and targets.frames[-1] >= num_frames:
+        raise ValueError(
+            f"{what} has a target at {name(len(targets) - 1)}, outside the clip's num_frames={num_frames} "
+            "frames (0 .. num_frames - 1)"
+        )
+    _check_coordinates(targets.positions, name, what)
+    return targets if len(targets) else None
+
+
+def check_objectives(
+    objectives: Any, what: str = "objectives", num_frames: int | None = None
+) -> tuple[Any, ...]:
     """None or a list of objectives (:mod:`motion_env.objectives`, or callables ``f(joints) -> scalar``)
-    -> a tuple; TypeError naming the first entry that is not callable. What a callable returns is
-    checked when the generator first evaluates it (it needs torch)."""
+    -> a tuple; TypeError naming the first entry that is not callable. With `num_frames` (a whole
+    clip), each callable is also evaluated once (:func:`check_objective_values`)."""
     if objectives is None:
         return ()
     if callable(objectives) or isinstance(objectives, str | bytes) or not isinstance(objectives, Sequence):
@@ -340,7 +369,44 @@ def check_objectives(objectives: Any, what: str = "objectives") -> tuple[Any, ..
                 f"{what}[{k}] is a {type(obj).__name__}, not an objective: give a motion_env.objectives "
                 f"object or a callable f(joints) -> scalar (joints: torch.Tensor (T, 22, 3))"
             )
+    if num_frames is not None:
+        check_objective_values(tuple(objectives), num_frames, what)
     return tuple(objectives)
+
+
+def check_objective_values(objectives: tuple, num_frames: int, what: str = "objectives") -> None:
+    """Evaluate each callable objective once on a still clip: it must return a finite 0-d (or
+    one-element) torch tensor that depends on the joints. ValueError / TypeError naming it otherwise."""
+    for k, obj in enumerate(objectives):
+        if isinstance(obj, KeepOut | StayInside | HeightLimit):
+            continue
+        probe = torch.zeros(num_frames, 22, 3, requires_grad=True)
+        try:
+            with torch.enable_grad():
+                value = obj(probe)
+        except Exception as exc:  # the user's code: say which objective failed, keep the cause
+            raise ValueError(
+                f"{what}[{k}] ({obj!r}) raised {type(exc).__name__} on a (T, 22, 3) tensor: {exc}"
+            ) from exc
+        if not isinstance(value, torch.Tensor):
+            raise TypeError(
+                f"{what}[{k}] returned a {type(value).__name__}; it must return a scalar torch.Tensor "
+                "computed "
+                "from the joints (so the refinement can follow its gradient)"
+            )
+        if value.numel() != 1:
+            raise ValueError(
+                f"{what}[{k}] returned a tensor of shape {tuple(value.shape)}; it must return a scalar"
+            )
+        if not torch.isfinite(value).all():
+            raise ValueError(
+                f"{what}[{k}] returned {float(value)} on a still clip; it must return a finite cost"
+            )
+        if not value.requires_grad:
+            raise ValueError(
+                f"{what}[{k}] returned a value that does not depend on the joints (no gradient): the "
+                "refinement could not lower it"
+            )
 
 
 def _per_row(values: Any, batch: int, is_one: Any, what: str) -> list[Any]:
@@ -356,10 +422,12 @@ def _per_row(values: Any, batch: int, is_one: Any, what: str) -> list[Any]:
 
 def per_row_controls(
     joint_targets: Any, objectives: Any, batch: int, num_frames: int
-) -> tuple[list[np.ndarray | None], list[tuple[Any, ...]]]:
+) -> tuple[list[JointTargets | None], list[tuple[Any, ...]]]:
     """The joint targets and objectives of each character of a batch (None, one for all, or B entries)."""
 
     def one_array(v: Any) -> bool:
+        if isinstance(v, JointTargets):
+            return True
         return np.asarray(v, dtype=object).ndim == 3 if not isinstance(v, np.ndarray) else v.ndim == 3
 
     def one_list(v: Any) -> bool:
@@ -372,7 +440,7 @@ def per_row_controls(
     name = (lambda w, i: w) if batch == 1 else (lambda w, i: f"{w} of character {i}")
     return (
         [check_joint_targets(t, num_frames, name("joint_targets", i)) for i, t in enumerate(targets)],
-        [check_objectives(o, name("objectives", i)) for i, o in enumerate(objs)],
+        [check_objectives(o, name("objectives", i), num_frames) for i, o in enumerate(objs)],
     )
 
 
@@ -386,9 +454,10 @@ class BatchRequest:
         starts: (B, 3) float32 x, z, heading of frame 0.
         num_frames: frames per clip (1 to MAX_FRAMES).
         seed: the resolved seed (a fresh one when the caller gave None).
-        targets: per character, None or (num_frames, 22, 3) float32 joint targets (NaN = free);
-            None for the whole request when no character has targets or objectives.
-        objectives: per character, a tuple of objectives (None as for `targets`).
+        joint_targets: per character, None or its :class:`~motion_env.joint_targets.JointTargets`
+            (frames of the clip); None for the whole request when no character has joint targets
+            or objectives.
+        objectives: per character, a tuple of objectives (None as for `joint_targets`).
     """
 
     texts: list[str]
@@ -396,7 +465,7 @@ class BatchRequest:
     starts: np.ndarray
     num_frames: int
     seed: int
-    targets: list[np.ndarray | None] | None = None
+    joint_targets: list[JointTargets | None] | None = None
     objectives: list[tuple[Any, ...]] | None = None
 
 
@@ -413,7 +482,7 @@ def check_batch_request(
     """Check every argument of a batch request once and return the validated values (no model needed)."""
     texts = check_texts(texts)
     routes = per_row_waypoints(waypoints, len(texts))
-    req = _finish(texts, routes, check_starts(starts, len(texts)), num_frames, seed, infeasible)
+    req = _route_request(texts, routes, check_starts(starts, len(texts)), num_frames, seed, infeasible)
     if joint_targets is None and objectives is None:
         return req
     targets, objs = per_row_controls(joint_targets, objectives, len(texts), req.num_frames)
@@ -423,7 +492,7 @@ def check_batch_request(
 def _with_controls(req: BatchRequest, targets: list, objs: list) -> BatchRequest:
     if all(t is None for t in targets) and not any(objs):
         return req
-    return replace(req, targets=targets, objectives=objs)
+    return replace(req, joint_targets=targets, objectives=objs)
 
 
 def check_request(
@@ -439,14 +508,14 @@ def check_request(
     """:func:`check_batch_request` for one character, with messages naming `text`, `waypoints`,
     `start`, `joint_targets` and `objectives` (a batch of one)."""
     starts = np.zeros((1, 3), np.float32) if start is None else check_start(start)[None]
-    req = _finish([check_text(text)], [check_route(waypoints)], starts, num_frames, seed, infeasible)
+    req = _route_request([check_text(text)], [check_route(waypoints)], starts, num_frames, seed, infeasible)
     if joint_targets is None and objectives is None:
         return req
     targets = [check_joint_targets(joint_targets, req.num_frames)]
-    return _with_controls(req, targets, [check_objectives(objectives)])
+    return _with_controls(req, targets, [check_objectives(objectives, num_frames=req.num_frames)])
 
 
-def _finish(
+def _route_request(
     texts: list[str],
     routes: list[np.ndarray | None],
     starts: np.ndarray,

@@ -9,8 +9,8 @@ so its refinement is causal and closed-form (the gradient steps of the whole-cli
   waypoints are (so the pelvis passes exactly through its x, z);
 - every targeted joint is blended into its target over the FADE frames (0.5 s) before the
   target's frame and its leftover correction fades out over FADE frames after it
-  (:func:`~motion_env.generation.targets.causal_field`), then the closed-form finish of
-  :func:`~motion_env.generation.targets.finish` solves the limbs (pelvis height, spine, legs,
+  (:func:`~motion_env.generation.closed_form.causal_field`), then the closed-form finish of
+  :func:`~motion_env.generation.closed_form.solve_limbs` solves the limbs (pelvis height, spine, legs,
   arms). A target is therefore met if it is given at least FADE frames before its frame; one
   given later is still met at its frame, with a quicker blend.
 - :class:`~motion_env.objectives.HeightLimit` works as for whole clips (the bound eases in over
@@ -24,7 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from motion_env.generation.targets import FADE, PELVIS, causal_field, finish, limit_bounds
+from motion_env.generation.closed_form import FADE, PELVIS, causal_field, limit_bounds, solve_limbs
+from motion_env.joint_targets import JointTargets
 from motion_env.motion.skeleton import JOINT_NAMES, NUM_JOINTS
 from motion_env.objectives import HeightLimit
 
@@ -40,24 +41,30 @@ class StreamControl:
     """
 
     def __init__(self, batch: int) -> None:
-        self.targets: list[dict[int, np.ndarray]] = [{} for _ in range(batch)]
+        self.targets: list[JointTargets] = [JointTargets.empty() for _ in range(batch)]
         self.limits: list[list[HeightLimit]] = [[] for _ in range(batch)]
         self.carry: list[dict[int, Any]] = [{} for _ in range(batch)]
         self.errors: list[list[tuple[int, int, float]]] = [[] for _ in range(batch)]
 
     def reset(self, i: int) -> None:
-        self.targets[i], self.limits[i], self.carry[i], self.errors[i] = {}, [], {}, []
+        self.targets[i], self.limits[i], self.carry[i], self.errors[i] = JointTargets.empty(), [], {}, []
 
     def active(self, i: int) -> bool:
-        return bool(self.targets[i] or self.limits[i] or self.carry[i])
+        return bool(len(self.targets[i]) or self.limits[i] or self.carry[i])
 
-    def set_targets(self, i: int, targets: np.ndarray | None, first_frame: int, decoded: int) -> None:
-        """Replace character i's targets: row k of (F, 22, 3) `targets` is episode frame first_frame + k."""
-        self.targets[i] = {}
+    def set_targets(self, i: int, targets: JointTargets | None, decoded: int) -> None:
+        """Replace character i's targets (frames are its episode frames).
+
+        Targets of frames already decoded cannot be met (those frames never change): they are
+        dropped with a warning, except those the character already had (a caller that re-sends
+        its targets together with a new one, as the studio does, is not warned about the old)."""
+        known = {(f, j) for f, j, _ in self.errors[i]}
+        known |= set(zip(self.targets[i].frames.tolist(), self.targets[i].joints.tolist(), strict=True))
+        self.targets[i] = JointTargets.empty()
         if targets is None:
             return
-        rows = np.flatnonzero(~np.isnan(targets[..., 0]).all(axis=1))
-        late = [int(r) + first_frame for r in rows if r + first_frame < decoded]
+        past = targets.between(None, decoded)
+        late = sorted({int(f) for f, j in zip(past.frames, past.joints, strict=True) if (f, j) not in known})
         if late:
             warnings.warn(
                 f"joint_targets of character {i}: frames {late[:10]}{' ...' if len(late) > 10 else ''} are "
@@ -66,18 +73,13 @@ class StreamControl:
                 UserWarning,
                 stacklevel=3,
             )
-        for r in rows:
-            if r + first_frame >= decoded:
-                self.targets[i][int(r) + first_frame] = targets[r]
+        self.targets[i] = targets.between(decoded, None)
 
     def pelvis_anchors(self, i: int, anchor: int, last: int) -> np.ndarray:
         """(M, 3) x, z and frame (relative to `anchor`) of the pelvis targets in (anchor, last]."""
-        rows = [
-            (float(t[PELVIS, 0]), float(t[PELVIS, 2]), float(f - anchor))
-            for f, t in sorted(self.targets[i].items())
-            if anchor < f <= last and not np.isnan(t[PELVIS, 0])
-        ]
-        return np.array(rows, np.float32).reshape(-1, 3)
+        pelvis = self.targets[i].of_joint(PELVIS).between(anchor + 1, last + 1)
+        rows = np.column_stack([pelvis.positions[:, 0], pelvis.positions[:, 2], pelvis.frames - anchor])
+        return rows.astype(np.float32).reshape(-1, 3)
 
     def apply(self, i: int, first: int, joints: np.ndarray, contacts: np.ndarray) -> np.ndarray:
         """Character i's new frames first.. (n, 22, 3), feet pinned, -> the frames with their targets met.
@@ -85,10 +87,7 @@ class StreamControl:
         contacts: (n, 4) the decoded foot contacts (> 0.5 planted).
         """
         n = len(joints)
-        window = np.full((n + FADE + 1, NUM_JOINTS, 3), np.nan)
-        for f in range(first, first + n + FADE + 1):
-            if f in self.targets[i]:
-                window[f - first] = self.targets[i][f]
+        window = self.targets[i].dense(n + FADE + 1, first).astype(np.float64)
         desired = np.full((n, NUM_JOINTS, 3), np.nan)
         for j in range(NUM_JOINTS):
             known = ~np.isnan(window[:, j, 0])
@@ -101,12 +100,11 @@ class StreamControl:
         bounds = limit_bounds(self.limits[i], first + n + FADE + 1)
         low, high = bounds[0][first : first + n], bounds[1][first : first + n]
         planted = (np.asarray(contacts) > 0.5).reshape(n, 2, 2).any(axis=2)
-        out = finish(joints, desired.astype(np.float32), [], planted, bounds=(low, high))
-        for f in range(first, first + n):
-            if f in self.targets[i]:
-                t = self.targets[i].pop(f)
-                for j in np.flatnonzero(~np.isnan(t[:, 0])):
-                    self.errors[i].append((f, int(j), float(np.linalg.norm(out[f - first, j] - t[j]))))
+        out = solve_limbs(joints, desired.astype(np.float32), [], planted, bounds=(low, high))
+        done = self.targets[i].between(first, first + n)
+        for f, j, target in zip(done.frames, done.joints, done.positions, strict=True):
+            self.errors[i].append((int(f), int(j), float(np.linalg.norm(out[f - first, j] - target))))
+        self.targets[i] = self.targets[i].between(first + n, None)
         return out
 
     def describe(self, i: int) -> str:

@@ -48,8 +48,9 @@ from motion_env.generation.request import (
     per_row_waypoints,
     resolve_seed,
 )
-from motion_env.generation.route import plan_route
+from motion_env.generation.route_planning import plan_route
 from motion_env.generation.stream_control import StreamControl
+from motion_env.joint_targets import JointTargets
 from motion_env.models.controller import ControllerState
 from motion_env.models.path_features import D_PATH, token_path_features
 from motion_env.models.sampling import sample_tokens
@@ -235,29 +236,35 @@ class MotionStream:
             self._dirty[i] = self._route_changed[i] = True
 
     def set_joint_targets(
-        self, targets: np.ndarray | None, index: int | None = None, first_frame: int | None = None
+        self,
+        targets: JointTargets | np.ndarray | None,
+        index: int | None = None,
+        first_frame: int | None = None,
     ) -> None:
         """Give one character (`index`) or all (None) joint targets from now on (replacing earlier ones).
 
         Args:
-            targets: (F, 22, 3) world positions (metres), NaN where a joint is free; row k is
-                episode frame ``first_frame + k``. None removes the targets.
-            first_frame: the episode frame of row 0 (default: the next frame to be emitted).
+            targets: a :class:`~motion_env.joint_targets.JointTargets` whose frames are episode
+                frames, or a dense (F, 22, 3) array of world positions (metres), NaN where a joint
+                is free, row k being episode frame ``first_frame + k``. None removes the targets.
+            first_frame: a dense array's row 0 (default: the next frame to be emitted).
 
         Look-ahead: a target is met exactly at its frame if it is set at least FADE (10) frames
         before it (the joint blends into it over those frames); a pelvis target also bends the path
         once it is within ``lookahead_frames`` (20). Targets for frames already decoded (up to
-        ``control_delay_frames`` after the last emitted one) are not used, with a warning; emitted
-        frames never change. See :mod:`motion_env.generation.stream_control`.
+        ``control_delay_frames`` after the last emitted one) are not used, with a warning (not for
+        targets the character already had); emitted frames never change. See
+        :mod:`motion_env.generation.stream_control`.
         """
         rows = self._rows(index)
-        start = int(self._emitted[rows[0]]) if first_frame is None else first_frame
-        if isinstance(start, bool) or int(start) != start or start < 0:
+        if first_frame is not None and (
+            isinstance(first_frame, bool) or int(first_frame) != first_frame or first_frame < 0
+        ):
             raise ValueError(f"first_frame must be a frame index >= 0, got {first_frame!r}")
-        checked = check_joint_targets(targets, None, "joint_targets", int(start))
         for i in rows:
-            first = int(self._emitted[i]) if first_frame is None else int(start)
-            self._control.set_targets(int(i), checked, first, int(self._decoded[i]))
+            first = int(self._emitted[i]) if first_frame is None else int(first_frame)
+            checked = check_joint_targets(targets, None, "joint_targets", first)
+            self._control.set_targets(int(i), checked, int(self._decoded[i]))
 
     def set_objectives(self, objectives: Sequence[Any] | None, index: int | None = None) -> None:
         """Height limits for one character (`index`) or all (None) from now on (replacing earlier ones).
@@ -416,45 +423,61 @@ class MotionStream:
         return spread_residuals(path, anchors).astype(np.float32)
 
     def _produce(self, rows: np.ndarray) -> None:
-        """Decode the next token of each character in `rows` and fill their frame buffers."""
-        g, rate, ring, horizon = self._pipe, self._rate, self._ring, self._horizon
+        """Decode the next token of each character in `rows` and fill their frame buffers: the
+        pipeline's stages in their order (:mod:`motion_env.generation.pipeline`), for one token."""
+        first = self._decoded[rows]  # (N,) first frame of the new token
+        ahead = self._plan_paths(rows, first)  # 2. path (1. text ran in set_text / reset)
+        tokens = self._sample_tokens(rows, ahead)  # 3. tokens
+        body = self._pipe.decode_next(self._decoder, tokens, rows)  # 4. decode
+        joints, paths = self._compose(rows, first, body, ahead)  # 5. compose
+        pinned = self._feet.apply_rows(rows, joints, body[:, :, FOOT_CONTACT])  # 6. feet
+        for n, i in enumerate(rows):
+            f = int(first[n])
+            self._snapped[i, np.arange(f, f + self._rate) % self._ring] = ahead[n][: self._rate]
+            self._buffer[i] = pinned[n]
+            if self._control.active(int(i)):  # 7. refine (causal, closed form)
+                self._buffer[i] = self._control.apply(int(i), f, self._buffer[i], body[n][:, FOOT_CONTACT])
+            self._buffer_root[i] = paths[n]
+        self._decoded[rows] += self._rate
+        self._buffer_pos[rows] = 0
+
+    def _plan_paths(self, rows: np.ndarray, first: np.ndarray) -> list[np.ndarray]:
+        """Each row's root path over frames first..first+horizon: committed up to the anchor (one
+        frame before the token), the controller's look-ahead snapped beyond it."""
         dirty = rows[self._dirty[rows]]
         if len(dirty):
             self._restore(dirty)
-        first = self._decoded[rows]  # (N,) first frame of the new token
-        self._advance(rows, first + horizon)
-
-        # Root path: committed up to the anchor, snapped look-ahead beyond it.
-        ahead: list[np.ndarray] = []
-        path_feat = torch.zeros(self.batch_size, D_PATH)
+        self._advance(rows, first + self._horizon)
+        ahead = []
         for n, i in enumerate(rows):
             f = int(first[n])
             anchor = max(f - 1, 0)
-            window = self._snap_ahead(int(i), anchor, f + horizon)[f - anchor :]  # frames f..f+horizon
-            ahead.append(window)
-            path_feat[i] = torch.from_numpy(token_path_features(window, rate)[0])
+            ahead.append(self._snap_ahead(int(i), anchor, f + self._horizon)[f - anchor :])
+        return ahead
 
-        # One GPT step for the whole batch; characters that are mid-token take no step: their
-        # new cache entry is masked out and their position rewound.
-        logits, self._cache = g.gpt.step(self._cache, self._prev.to(g.device), path_feat.to(g.device))
-        if len(rows) < self.batch_size:
-            idle = np.setdiff1d(np.arange(self.batch_size), rows)
-            if self._cache.guidance != 1.0:
-                idle = np.concatenate([idle, idle + self.batch_size])
-            idle_t = torch.as_tensor(idle, device=self._cache.valid.device)
-            self._cache.valid[idle_t, -1] = False
-            self._cache.pos[idle_t] -= 1
+    def _sample_tokens(self, rows: np.ndarray, ahead: list[np.ndarray]) -> torch.Tensor:
+        """One GPT step for the whole batch, in which only `rows` advance: (N,) sampled tokens."""
+        g = self._pipe
+        path_feat = torch.zeros(self.batch_size, D_PATH)
+        for n, i in enumerate(rows):
+            path_feat[i] = torch.from_numpy(token_path_features(ahead[n], self._rate)[0])
+        logits, self._cache = g.gpt.step(self._cache, self._prev.to(g.device), path_feat.to(g.device), rows)
         rows_t = torch.as_tensor(rows, device=logits.device)
         tokens = sample_tokens(logits[rows_t], [self._tok_gens[i] for i in rows], g.sampling)
         self._prev[torch.as_tensor(rows)] = tokens.to(self._prev.device)
+        return tokens
 
-        # Decode the newest token of each character (the decoder keeps each one's history).
-        body = g.decode_next(self._decoder, tokens, rows)
+    def _compose(
+        self, rows: np.ndarray, first: np.ndarray, body: np.ndarray, ahead: list[np.ndarray]
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The new frames' body on each path: (N, rate, 22, 3) joints and (N, rate, 3) root path.
 
-        # The body on each path, over a window of recent frames: one batched compose per window
-        # length (every character once past its first two seconds).
+        The recompose runs over a window of recent frames (its smoothing needs the past), one
+        batched call per window length (every character once past its first two seconds)."""
+        rate, ring = self._rate, self._ring
         window = np.minimum(first + rate, self._window)  # frames begin..f+rate-1, begin >= 0
-        composed: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        joints = np.zeros((len(rows), rate, NUM_JOINTS, 3), np.float32)
+        paths = np.zeros((len(rows), rate, 3), np.float32)
         for length in np.unique(window):
             sel = np.nonzero(window == length)[0]
             feats, roots = [], []
@@ -464,17 +487,6 @@ class MotionStream:
                 span = np.arange(f + rate - length, f + rate)
                 feats.append(self._features[i, span % ring])
                 roots.append(np.concatenate([self._snapped[i, span[:-rate] % ring], ahead[n]]))
-            joints, path = g.compose(np.stack(feats), np.stack(roots), int(length))
-            composed.update({int(n): (joints[k], path[k]) for k, n in enumerate(sel)})
-        new = np.stack([composed[n][0][-rate:] for n in range(len(rows))])
-        pinned = self._feet.apply_rows(rows, new, body[:, :, FOOT_CONTACT])
-        for n, i in enumerate(rows):
-            f = int(first[n])
-            path = composed[n][1]
-            self._snapped[i, np.arange(f, f + rate) % ring] = ahead[n][:rate]
-            self._buffer[i] = pinned[n]
-            if self._control.active(int(i)):
-                self._buffer[i] = self._control.apply(int(i), f, self._buffer[i], body[n][:, FOOT_CONTACT])
-            self._buffer_root[i] = path[-rate:]
-        self._decoded[rows] += rate
-        self._buffer_pos[rows] = 0
+            j, path = self._pipe.compose(np.stack(feats), np.stack(roots), int(length))
+            joints[sel], paths[sel] = j[:, -rate:], path[:, -rate:]
+        return joints, paths

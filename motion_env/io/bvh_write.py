@@ -22,7 +22,7 @@ Rotations: the root position is the pelvis; the root rotation is the heading yaw
 -> spine1 bone points where it does; every other joint takes the shortest-arc rotation of its
 bone from the rest direction, seen from its parent (so no twist is made up, and a limb's local
 rotation is small when it is near its rest direction); leaf joints keep their parent's rotation.
-The clip is first put on the canonical bone lengths (:func:`motion.retarget`, as
+The clip is first put on the canonical bone lengths (:func:`motion.kinematics.rescale_bones`, as
 :func:`motion_env.load_bvh` does), so the file reproduces the joints within micrometres, where
 they are. ``load_bvh`` reads it back as ``canonicalize(joints)`` (at the origin, facing +Z): a
 clip it returned comes back within 0.002 mm.
@@ -40,8 +40,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from motion_env.motion.checks import check_joints
-from motion_env.motion.kinematics import heading_from_joints, retarget
+from motion_env.motion.kinematics import heading_from_joints, rescale_bones
 from motion_env.motion.rotations import qbetween, qinv, qmul, qrot, quat_from_yaw
 from motion_env.motion.skeleton import (
     BONE_LENGTHS,
@@ -51,6 +50,7 @@ from motion_env.motion.skeleton import (
     PARENTS,
     RAW_OFFSETS,
 )
+from motion_env.motion.validation import check_joints
 
 __all__ = [
     "BVH_UNITS",
@@ -192,7 +192,7 @@ def bvh_text(motion: Any) -> str:
     fps = float(getattr(motion, "fps", 0.0))
     if not (np.isfinite(fps) and fps > 0):
         raise ValueError(f"motion.fps must be a positive number, got {getattr(motion, 'fps', None)!r}")
-    joints = retarget(joints)  # canonical bone lengths; the identity for a canonical clip
+    joints = rescale_bones(joints)  # canonical bone lengths; the identity for a canonical clip
     layout = bvh_layout()
     values = _channel_values(joints, layout)
     buf = io.StringIO()

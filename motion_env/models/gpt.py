@@ -29,13 +29,14 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import nn
 
 from motion_env.models.path_features import D_PATH
 from motion_env.models.sampling import SamplingConfig, sample_tokens
-from motion_env.motion.checks import check_positive_ints
+from motion_env.motion.validation import check_positive_ints
 
 
 @dataclass
@@ -368,15 +369,23 @@ class TokenGPT(nn.Module):
 
     @torch.no_grad()
     def step(
-        self, cache: GPTCache, prev_token: torch.Tensor | None, path_feat: torch.Tensor
+        self,
+        cache: GPTCache,
+        prev_token: torch.Tensor | None,
+        path_feat: torch.Tensor,
+        rows: np.ndarray | Sequence[int] | None = None,
     ) -> tuple[torch.Tensor, GPTCache]:
-        """One decoding step for every row.
+        """One decoding step for every row, or for some rows only.
 
         Args:
             cache: from :meth:`new_cache` (updated in place and returned).
             prev_token: (B,) long, the token sampled at the previous step; rows at position 0
                 (fresh or reset) take START whatever is passed. None = every row starts.
             path_feat: (B, path_dim) path features of the token about to be predicted.
+            rows: the rows that advance (None: all). The batch runs as one call either way; the
+                other rows' new cache entry is masked out and their position rewound, so their
+                next step is as if this one never happened (the stream's characters that are
+                still mid-token).
 
         Returns:
             logits (B, vocab_size) of the next token (guidance applied), and the cache.
@@ -393,12 +402,23 @@ class TokenGPT(nn.Module):
             start = torch.cat([start, start])
         prev = torch.where(cache.pos == 0, start, prev)
         logits = self._append(cache, prev[:, None], path[:, None])[:, 0]  # (R, V)
+        if rows is not None and len(rows) < B:
+            self._hold(cache, rows)
         if cache.guidance != 1.0:
             cond, uncond = logits[:B], logits[B:]
             logits = uncond + cache.guidance * (cond - uncond)
         return logits, cache
 
-    @torch.no_grad()
+    @staticmethod
+    def _hold(cache: GPTCache, rows: np.ndarray | Sequence[int]) -> None:
+        """Undo the last step for every row not in `rows` (and for their null-text twins)."""
+        idle = np.setdiff1d(np.arange(cache.batch_size), np.asarray(rows))
+        if cache.guidance != 1.0:
+            idle = np.concatenate([idle, idle + cache.batch_size])
+        idle_t = torch.as_tensor(idle, device=cache.valid.device)
+        cache.valid[idle_t, -1] = False
+        cache.pos[idle_t] -= 1
+
     @torch.no_grad()
     def generate(
         self,

@@ -46,6 +46,13 @@ class Normalizer:
             x = x.detach().float().cpu().numpy()
         return x * self.std + self.mean
 
+    def denormalize_torch(self, x: torch.Tensor) -> torch.Tensor:
+        """(..., 263) normalised values -> features, as a tensor on `x`'s device that keeps its
+        gradient (the refinement optimises through the decoder and this)."""
+        mean = torch.as_tensor(self.mean, device=x.device, dtype=x.dtype)
+        std = torch.as_tensor(self.std, device=x.device, dtype=x.dtype)
+        return x * std + mean
+
     def checkpoint_entries(self) -> dict[str, torch.Tensor]:
         """The ``mean`` / ``std`` entries of the VQ-VAE checkpoint."""
         return {"mean": torch.from_numpy(self.mean.copy()), "std": torch.from_numpy(self.std.copy())}

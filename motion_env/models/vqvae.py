@@ -25,8 +25,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from motion_env.motion.checks import check_at_least, check_positive_ints
 from motion_env.motion.skeleton import FEATURE_DIM, NUM_JOINTS, RIC
+from motion_env.motion.validation import check_at_least, check_positive_ints
 
 
 @dataclass
@@ -231,10 +231,16 @@ class VQVAE(nn.Module):
         if x.shape[1] == 0 or x.shape[1] % self.rate:
             raise ValueError(f"feature length {x.shape[1]} must be a positive multiple of rate {self.rate}")
 
-    def _encode_latent(self, x: torch.Tensor) -> torch.Tensor:
+    def encode_latent(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, T, feature_dim) normalised features -> (B, T / rate, code_dim) latents before quantising."""
         return self.encoder(x.transpose(1, 2)).transpose(1, 2)  # (B, T/rate, code_dim)
 
-    def _decode_latent(self, z: torch.Tensor) -> torch.Tensor:
+    def decode_latent(self, z: torch.Tensor) -> torch.Tensor:
+        """(B, N, code_dim) latents -> (B, N * rate, feature_dim) normalised features.
+
+        Differentiable in `z`: the test-time refinement optimises latents (or a softmax over the
+        codebook) through it; :meth:`decode` is its case with `z` the codebook rows of the tokens.
+        """
         return self.decoder(z.transpose(1, 2)).transpose(1, 2)  # (B, N*rate, feature_dim)
 
     def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, dict[str, torch.Tensor]]:
@@ -248,8 +254,8 @@ class VQVAE(nn.Module):
             "recon", "velocity", "commit", and "perplexity" (codebook usage, for logging).
         """
         self._check_features(x)
-        quant, codes, q = self.quantizer(self._encode_latent(x))
-        recon = self._decode_latent(quant)
+        quant, codes, q = self.quantizer(self.encode_latent(x))
+        recon = self.decode_latent(quant)
         c = self.config
         rec = F.smooth_l1_loss(recon, x)
         # Frame-to-frame change of the root-relative joint positions: penalises jitter that a
@@ -263,7 +269,7 @@ class VQVAE(nn.Module):
     def encode(self, x: torch.Tensor) -> torch.Tensor:
         """(B, T, 263) normalised features -> (B, T // rate) long codes (T a multiple of rate)."""
         self._check_features(x)
-        z = self._encode_latent(x)
+        z = self.encode_latent(x)
         return self.quantizer.nearest(z.reshape(-1, z.shape[-1])).view(z.shape[:-1])
 
     def decode(self, codes: torch.Tensor) -> torch.Tensor:
@@ -274,7 +280,7 @@ class VQVAE(nn.Module):
             raise ValueError(
                 f"codes must lie in [0, {self.config.codebook_size}), got {codes.min()}..{codes.max()}"
             )
-        return self._decode_latent(self.quantizer.codebook[codes])
+        return self.decode_latent(self.quantizer.codebook[codes])
 
     def decoder_stream(self, batch: int) -> DecoderStream:
         """A :class:`DecoderStream` of `batch` rows: the decoder run one token at a time."""

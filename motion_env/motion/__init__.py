@@ -6,7 +6,7 @@
 - :mod:`.kinematics`: heading, bones, FK/IK, canonicalisation, mirroring, resampling.
 - :mod:`.features`: HumanML3D's 263-d features (``joints_to_features`` / ``features_to_joints``).
 - :mod:`.trajectory`: root paths (x, z, heading per frame) and waypoints.
-- :mod:`.checks`: the shape and value checks they share.
+- :mod:`.validation`: the shape and value checks they share.
 
 The math (rotations, kinematics, features) is re-exported here: ``motion_env.motion.joints_to_features``.
 """

@@ -11,8 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from motion_env.motion.checks import EPS, check_finite, check_joints
-from motion_env.motion.kinematics import chain_local_rotations, heading_from_joints, retarget, rotate_y
+from motion_env.motion.kinematics import chain_local_rotations, heading_from_joints, rescale_bones, rotate_y
 from motion_env.motion.rotations import qbetween, qinv, qmul, qrot, quat_to_rot6d
 from motion_env.motion.skeleton import (
     FACE_JOINTS,
@@ -22,6 +21,7 @@ from motion_env.motion.skeleton import (
     RIGHT_FOOT,
 )
 from motion_env.motion.skeleton import RIC as RIC_SLICE
+from motion_env.motion.validation import EPS, check_finite, check_joints
 
 if TYPE_CHECKING:
     import torch
@@ -77,9 +77,10 @@ def joints_to_features(
 ) -> np.ndarray:
     """HumanML3D's ``process_file``: joint positions (T, 22, 3) -> 263-d features (T-1, 263).
 
-    Steps, as the original: :func:`retarget` to ``BONE_LENGTHS``; put on the floor (the lowest
-    joint of the whole clip at y = 0; skipped with ``floor=False``, e.g. for clips already
-    floored by :func:`canonicalize`); frame-0 pelvis to x = z = 0; rotate so frame 0 faces +Z;
+    Steps, as the original: :func:`~motion_env.motion.kinematics.rescale_bones` to
+    ``BONE_LENGTHS``; put on the floor (the lowest joint of the whole clip at y = 0; skipped with
+    ``floor=False``, e.g. for clips already floored by :func:`canonicalize`); frame-0 pelvis to
+    x = z = 0; rotate so frame 0 faces +Z;
     then per frame t < T-1 (layout in :mod:`motion_env.motion.skeleton`):
 
     - ROOT_ROT_VEL: half the yaw change of the smoothed root rotation from t to t+1 (radians);
@@ -93,7 +94,7 @@ def joints_to_features(
     body turning through -Z gets the right sign (the original flips it there; the reference clip
     never faces -Z, so it reproduces unchanged). Returns float32.
     """
-    positions = retarget(check_joints(joints, min_frames=2))
+    positions = rescale_bones(check_joints(joints, min_frames=2))
     if floor:
         positions[..., 1] -= positions[..., 1].min()
     positions[..., [0, 2]] -= positions[0, 0, [0, 2]]

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from motion_env.motion.checks import check_joints, check_last
 from motion_env.motion.rotations import (
     qbetween,
     qfix,
@@ -37,6 +36,7 @@ from motion_env.motion.skeleton import (
     PARENTS,
     RAW_OFFSETS,
 )
+from motion_env.motion.validation import check_joints, check_last
 
 __all__ = [
     "ROTATION_PARENTS",
@@ -51,7 +51,7 @@ __all__ = [
     "inverse_kinematics",
     "mirror",
     "resample",
-    "retarget",
+    "rescale_bones",
     "rotate_y",
     "to_heading_frame",
     "with_bone_lengths",
@@ -229,7 +229,7 @@ def inverse_kinematics(joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 # ----------------------------------------------------------------------------------------------
 
 
-def retarget(joints: np.ndarray, lengths: np.ndarray = BONE_LENGTHS) -> np.ndarray:
+def rescale_bones(joints: np.ndarray, lengths: np.ndarray = BONE_LENGTHS) -> np.ndarray:
     """Rebuild poses from the pelvis down with new bone lengths, keeping every bone's direction.
 
     joints: (T, 22, 3); lengths: (22,). As HumanML3D's ``uniform_skeleton``, the pelvis
@@ -265,7 +265,7 @@ def _rebuild(joints: np.ndarray, pelvis: np.ndarray, lengths: np.ndarray) -> np.
 def with_bone_lengths(joints: np.ndarray, lengths: np.ndarray = BONE_LENGTHS) -> np.ndarray:
     """Rebuild every frame from the pelvis outward with `lengths`, keeping each bone's direction.
 
-    Unlike :func:`retarget` the pelvis trajectory is not scaled: each frame is only shifted up or
+    Unlike :func:`rescale_bones` the pelvis trajectory is not scaled: each frame is only shifted up or
     down so that its lowest foot joint stays at the height it had. A decoder's bones stretch and
     shrink a little from frame to frame (a leg 9 cm short puts a rigid body's foot 9 cm into the
     floor); on fixed lengths every frame is a pose of one body. Per frame, so streaming-safe.
@@ -295,12 +295,12 @@ def floor_height(joints: np.ndarray, percentile: float = 3.0) -> float:
 def canonicalize(joints: np.ndarray, floor_percentile: float = 3.0) -> np.ndarray:
     """Put a clip on the canonical skeleton, on the floor, at the origin, facing +Z.
 
-    joints: (T, 22, 3) world positions (Y up, metres) of any proportions. Steps: :func:`retarget`
+    joints: (T, 22, 3) world positions (Y up, metres) of any proportions. Steps: :func:`rescale_bones`
     to ``BONE_LENGTHS``; shift so the lowest foot joint is at y = 0 (:func:`floor_height`); move
     the frame-0 pelvis to x = z = 0; rotate about Y so frame 0 faces +Z
     (:func:`heading_from_joints`). Returns (T, 22, 3) float32.
     """
-    out = retarget(joints)
+    out = rescale_bones(joints)
     out[..., 1] -= floor_height(out, floor_percentile)
     out[..., [0, 2]] -= out[0, 0, [0, 2]]
     out = rotate_y(out, -heading_from_joints(out[0]))

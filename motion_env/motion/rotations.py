@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from motion_env.motion.checks import EPS, check_last
+from motion_env.motion.validation import EPS, check_last
 
 __all__ = [
     "matrix_to_rot6d",

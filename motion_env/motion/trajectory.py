@@ -15,9 +15,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from motion_env.motion.checks import check_finite
 from motion_env.motion.kinematics import heading_from_joints, to_heading_frame
 from motion_env.motion.skeleton import NUM_JOINTS
+from motion_env.motion.validation import check_finite
 
 MAX_COORDINATE = 10_000.0
 """Metres: waypoints (and starts) lie within this of the origin in x and z; float32 keeps about a

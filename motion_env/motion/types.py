@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from motion_env.motion.checks import check_finite
 from motion_env.motion.skeleton import FPS, NUM_JOINTS
+from motion_env.motion.validation import check_finite
 
 
 @dataclass
@@ -96,9 +96,19 @@ class Motion:
         with data:
             if "joints" not in data:
                 raise ValueError(f"{path}: no 'joints' array (keys: {sorted(data.keys())})")
-            fields = {
-                name: data[name] for name in ("joints", "fps", "text", "waypoints", "meta") if name in data
-            }
+            fields = {}
+            for name in ("joints", "fps", "text", "waypoints", "meta"):
+                if name not in data:
+                    continue
+                try:
+                    fields[name] = data[name]
+                except ValueError as exc:  # numpy's "Object arrays cannot be loaded when allow_pickle=False"
+                    raise ValueError(
+                        f"{path}: {name!r} is a pickled object array (Python objects, or arrays of "
+                        f"different lengths, given to np.savez); a motion file holds plain arrays, and "
+                        f"pickles are not loaded because loading one can run code. Save {name!r} as one "
+                        f"numeric array ('joints': float, shape (T, 22, 3)), as Motion.save does"
+                    ) from exc
         try:
             return cls(
                 joints=fields["joints"],

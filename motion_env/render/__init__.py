@@ -6,7 +6,7 @@
 - :mod:`.plot`: :func:`plot_path`, a top-down PNG of root paths, waypoints and obstacles;
 - :mod:`.skeleton`: :class:`SkeletonRenderer`, the stick-figure renderer behind frames and videos;
   :mod:`.camera` its :class:`Camera`, :mod:`.inset` the top-down map in a frame's corner,
-  :mod:`.scene` the colours and input checks shared by all stick-figure pictures;
+  :mod:`.drawing` the colours and input checks shared by all stick-figure pictures;
 - :mod:`.humanoid`: the MuJoCo replay humanoid: the env's ``render_style="humanoid"`` frames
   (``HumanoidView``) and the replay video (``render_humanoid_video``). It imports mujoco, so it is
   loaded only when one of these two names is first used.

@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from motion_env.motion.checks import check_above
+from motion_env.motion.validation import check_above
 
 
 @dataclass(frozen=True)

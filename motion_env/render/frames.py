@@ -11,7 +11,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from motion_env.render.camera import Camera
-from motion_env.render.scene import as_xz, check_size
+from motion_env.render.drawing import as_xz, check_size
 from motion_env.render.skeleton import SkeletonRenderer
 
 _RENDERERS: dict[tuple[int, int, Camera], SkeletonRenderer] = {}

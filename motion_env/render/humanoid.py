@@ -28,7 +28,7 @@ import numpy as np  # noqa: E402
 from motion_env.render.video import VideoWriter, check_video_path  # noqa: E402
 from motion_env.replay.fit import fit_qpos  # noqa: E402
 from motion_env.replay.kinematic import Measurements  # noqa: E402
-from motion_env.replay.scene import load_model, model_index  # noqa: E402
+from motion_env.replay.mjcf import load_model, model_index  # noqa: E402
 
 _PROBLEM_RGBA = np.array([0.9, 0.1, 0.1, 1.0])
 _BAR = 14  # pixels: height of the timeline
@@ -94,7 +94,7 @@ def render_humanoid_video(
 ) -> Path:
     """Write the replay of `measurements` to `path` (.mp4 or .gif, :class:`VideoWriter`).
 
-    report: the :func:`motion_env.replay.checks.report` (or :func:`~motion_env.replay.evaluate`
+    report: the :func:`motion_env.replay.plausibility.report` (or :func:`~motion_env.replay.evaluate`
     result) of the same measurements, whose failing frames are marked. The camera follows the
     pelvis from the front left.
     """

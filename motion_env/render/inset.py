@@ -13,7 +13,7 @@ from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 
 from motion_env.motion.kinematics import heading_from_joints
-from motion_env.render.scene import (
+from motion_env.render.drawing import (
     MAX_LABELLED_WAYPOINTS,
     OBSTACLE_COLOR,
     SPINE_COLOR,

@@ -11,10 +11,10 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
-from motion_env.motion.checks import check_joints
 from motion_env.motion.kinematics import heading_from_joints
 from motion_env.motion.types import Motion
-from motion_env.render.scene import (
+from motion_env.motion.validation import check_joints
+from motion_env.render.drawing import (
     MAX_LABELLED_WAYPOINTS,
     OBSTACLE_COLOR,
     WAYPOINT_COLOR,

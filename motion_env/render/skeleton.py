@@ -25,8 +25,7 @@ from matplotlib.patches import Rectangle
 
 from motion_env.motion.skeleton import CHAINS
 from motion_env.render.camera import Camera
-from motion_env.render.inset import Inset
-from motion_env.render.scene import (
+from motion_env.render.drawing import (
     HIGHLIGHT_COLOR,
     LEFT_COLOR,
     MAX_LABELLED_WAYPOINTS,
@@ -49,6 +48,7 @@ from motion_env.render.scene import (
     waypoint_time,
     with_breaks,
 )
+from motion_env.render.inset import Inset
 
 _SKY_TOP = np.array([0.80, 0.86, 0.93])
 _SKY_HORIZON = np.array([0.96, 0.97, 0.98])

@@ -15,10 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
-from motion_env.motion.checks import check_joints, check_positive
 from motion_env.motion.types import Motion
+from motion_env.motion.validation import check_joints, check_positive
 from motion_env.render.camera import Camera, follow_centers, framing_camera
-from motion_env.render.scene import as_obstacles, as_waypoints, check_size, obstacle_extent
+from motion_env.render.drawing import as_obstacles, as_waypoints, check_size, obstacle_extent
 from motion_env.render.skeleton import SkeletonRenderer
 
 VIDEO_SUFFIXES = (".mp4", ".gif")

@@ -6,10 +6,10 @@
 
 What is where:
 
-- :mod:`.checks`: the nine checks, :func:`evaluate` / :func:`evaluate_detailed`, the report and
+- :mod:`.plausibility`: the nine checks, :func:`evaluate` / :func:`evaluate_detailed`, the report and
   the thresholds (``model/thresholds.json``);
 - :mod:`.humanoid`: the body generated from the canonical skeleton (:func:`humanoid_xml`);
-- :mod:`.scene`: the compiled model (``model/scene.xml`` + the body, :func:`load_model`) and
+- :mod:`.mjcf`: the compiled model (``model/scene.xml`` + the body, :func:`load_model`) and
   the ids into it;
 - ``model/``: the Menagerie-style model folder (scene, default body, thresholds, README);
 - :mod:`.fit`: joint positions -> qpos; :mod:`.kinematic`: per-frame measurements;
@@ -19,13 +19,17 @@ What is where:
   ``../shared/robots/unitree_g1/scene.xml``), measured by :mod:`.robot_kinematic`;
   :mod:`.judging`: what the humanoid's and the robot's reports share (:func:`format_report`).
 
-A clip shorter than :func:`~motion_env.replay.checks.min_frames` (20 frames, 1 s at 20 fps) is
+A clip shorter than :func:`~motion_env.replay.plausibility.min_frames` (20 frames, 1 s at 20 fps) is
 not judged: ``result["judged"]`` is False and ``result["plausible"]`` None.
 
 Videos of a replay are drawn by :func:`motion_env.render.humanoid.render_humanoid_video`.
 """
 
-from motion_env.replay.checks import (
+from motion_env.replay.humanoid import humanoid_xml
+from motion_env.replay.judging import format_report
+from motion_env.replay.kinematic import Measurements, measure
+from motion_env.replay.mjcf import load_model, scene_xml
+from motion_env.replay.plausibility import (
     CHECKS,
     evaluate,
     evaluate_detailed,
@@ -34,11 +38,7 @@ from motion_env.replay.checks import (
     report,
     signals,
 )
-from motion_env.replay.humanoid import humanoid_xml
-from motion_env.replay.judging import format_report
-from motion_env.replay.kinematic import Measurements, measure
 from motion_env.replay.robot import evaluate_robot
-from motion_env.replay.scene import load_model, scene_xml
 
 __all__ = [
     "CHECKS",

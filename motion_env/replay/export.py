@@ -22,7 +22,7 @@ from motion_env.motion.skeleton import FOOT_CONTACT, FOOT_JOINTS, FPS, JOINT_NAM
 from motion_env.replay.fit import clip_rest_directions, fit_qpos
 from motion_env.replay.humanoid import BALL_JOINTS, DEFAULT_MASS, humanoid_xml, to_mujoco
 from motion_env.replay.inputs import check_mass, check_motion
-from motion_env.replay.scene import load_model, model_index
+from motion_env.replay.mjcf import load_model, model_index
 
 __all__ = ["FIELDS", "foot_contacts", "humanoid_reference", "save_humanoid_npz"]
 

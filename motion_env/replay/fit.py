@@ -15,7 +15,7 @@ The fit is closed-form and vectorised over frames, in MuJoCo's frame (see
   relative to its parent, as its twist is not observable from joint positions.
 
 Positions are then exact up to bone-length differences and the rest shape of the pelvis and
-chest; :func:`motion_env.replay.checks.evaluate` reports the remaining error per joint.
+chest; :func:`motion_env.replay.plausibility.evaluate` reports the remaining error per joint.
 """
 
 from __future__ import annotations
@@ -23,11 +23,11 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from motion_env.motion.checks import check_joints
 from motion_env.motion.rotations import qbetween, qfix, quat_from_matrix, quat_to_matrix
 from motion_env.motion.skeleton import BONE_LENGTHS, JOINT_INDEX, NUM_JOINTS, PARENTS
+from motion_env.motion.validation import check_joints
 from motion_env.replay.humanoid import BALL_JOINTS, CHILDREN, REST_DIRECTIONS, rest_positions, to_mujoco
-from motion_env.replay.scene import ModelIndex
+from motion_env.replay.mjcf import ModelIndex
 
 _EPS = 1e-9
 _FORWARD = np.array([1.0, 0.0, 0.0])  # MuJoCo frame
@@ -193,7 +193,7 @@ def fit_qpos(
 ) -> np.ndarray:
     """qpos (T, nq) of the humanoid that reproduces joint positions (T, 22, 3) (motion frame).
 
-    `model` must be built with the same `rest_directions` (see :func:`motion_env.replay.scene.load_model`).
+    `model` must be built with the same `rest_directions` (see :func:`motion_env.replay.mjcf.load_model`).
     The free joint takes the pelvis position and world rotation; each ball joint the rotation of
     its body relative to its parent body. Quaternions are made continuous in time.
     """

@@ -6,9 +6,9 @@ capsule limbs sized from :data:`skeleton.BONE_LENGTHS`, and segment masses, cent
 inertias from standard body-segment proportions. As in MuJoCo Menagerie, the body XML holds the
 body only; the scene (floor, light, camera) is ``motion_env/replay/model/scene.xml``, which
 includes it as ``humanoid.xml`` (see ``motion_env/replay/model/README.md``). The body is made at
-load time (:func:`motion_env.replay.scene.load_model`) because the mass and the rest pose are
+load time (:func:`motion_env.replay.mjcf.load_model`) because the mass and the rest pose are
 parameters; ``model/humanoid.xml`` is the default body (70 kg, :data:`REST_DIRECTIONS`) written
-out by :func:`motion_env.replay.scene.write_body_xml`.
+out by :func:`motion_env.replay.mjcf.write_body_xml`.
 
 Frames: motions are Y up and face +Z (docs/conventions.md); MuJoCo models are Z up and humanoids
 face +X. :func:`to_mujoco` maps a motion point (x, y, z) to (z, x, y), a proper rotation, so the

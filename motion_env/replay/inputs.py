@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from motion_env.motion.checks import check_joints, check_positive
+from motion_env.motion.validation import check_joints, check_positive
 
 
 def check_mass(mass: Any) -> float:

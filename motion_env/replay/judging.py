@@ -58,7 +58,7 @@ def check_entry(signal: np.ndarray, threshold: float, unit: str, message: Callab
 def verdict(checks: dict[str, dict], num_frames: int, need: int, fps: float) -> dict:
     """The verdict keys of a report from its `checks`: ``plausible``, ``judged``, ``min_frames``,
     ``summary``, ``failed``. A clip of fewer than `need` frames (the replay's
-    :func:`~motion_env.replay.checks.min_frames`) is not judged."""
+    :func:`~motion_env.replay.plausibility.min_frames`) is not judged."""
     failed = [n for n, c in checks.items() if not c["passed"]]
     judged = num_frames >= need
     problems = "; ".join(checks[n]["message"] for n in failed)

@@ -3,7 +3,7 @@
 :func:`measure` runs ``mj_forward`` on every frame (joint positions, geoms, contacts between
 limbs, centre of mass) and ``mj_inverse`` with finite-difference velocities and accelerations
 (the wrench the root would need), and returns per-frame arrays. The checks that turn them into a
-verdict live in :mod:`motion_env.replay.checks`.
+verdict live in :mod:`motion_env.replay.plausibility`.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from motion_env.motion.types import Motion
 from motion_env.replay.fit import clip_rest_directions, fit_qpos
 from motion_env.replay.humanoid import DEFAULT_MASS, joint_ranges_rad, to_mujoco
 from motion_env.replay.inputs import check_mass, check_motion
-from motion_env.replay.scene import ModelIndex, load_model, model_index
+from motion_env.replay.mjcf import ModelIndex, load_model, model_index
 
 CONTACT_HEIGHT = 0.05
 """A body point this close to the floor (m) can be pushed by it: the floor of a mocap take and

@@ -24,7 +24,7 @@ root_torque           the same for the torque (N m/kg)
 Thresholds: the humanoid's calibrated ones (``model/thresholds.json``) where the quantity means
 the same (:data:`SHARED_CHECKS`); the robot's own (``model/robot_thresholds.json``, the reasons
 in the file) for ``joint_limits`` (a hard stop: 0 violations, 0.01 degrees for rounding) and
-``self_collision`` (2 cm). A clip shorter than :func:`~motion_env.replay.checks.min_frames` at its
+``self_collision`` (2 cm). A clip shorter than :func:`~motion_env.replay.plausibility.min_frames` at its
 rate (1 s) is not judged, as for the humanoid. The frames of the report are the frames of
 `qpos`: the joint ranges, the floor, floating and the self-collisions are checked on every one of
 them; foot skating and the root force and torque, built on steps and accelerations, on the clip
@@ -40,7 +40,9 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from motion_env.replay.checks import (
+from motion_env.replay.judging import check_entry, sentence, verdict
+from motion_env.replay.mjcf import MODEL_DIR
+from motion_env.replay.plausibility import (
     RESIDUAL_WINDOW,
     SKATE_WINDOW,
     SOLE_NAMES,
@@ -50,9 +52,7 @@ from motion_env.replay.checks import (
     moving_average,
     skating_signal,
 )
-from motion_env.replay.judging import check_entry, sentence, verdict
 from motion_env.replay.robot_kinematic import RobotMeasurements, measure_robot
-from motion_env.replay.scene import MODEL_DIR
 
 ROBOT_CHECKS: tuple[str, ...] = (
     "joint_limits",

@@ -12,12 +12,12 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from motion_env.motion.checks import check_positive
 from motion_env.motion.skeleton import JOINT_NAMES
 from motion_env.motion.types import Motion
+from motion_env.motion.validation import check_positive
 from motion_env.replay.humanoid import BALL_JOINTS, DEFAULT_MASS
 from motion_env.replay.kinematic import Measurements, inverse_dynamics, measure
-from motion_env.replay.scene import load_model, model_index
+from motion_env.replay.mjcf import load_model, model_index
 
 STIFFNESS = 20.0  # N m/rad per kg of body mass, for the legs and spine
 _GAIN_SHARE = {"neck": 0.3, "collar": 0.3, "shoulder": 0.2, "elbow": 0.1}  # of STIFFNESS

@@ -5,11 +5,11 @@ What is where:
 
 - :mod:`.session`: :class:`StudioSession`, the characters, their routes, goals and obstacles, one
   frame per tick (no web page; numpy and the generator only);
-- :mod:`.routes`: one character's waypoints and its progress along them;
+- :mod:`.route_progress`: one character's waypoints and its progress along them;
 - :mod:`.agent`: the A* agent (:mod:`policies.astar`) that walks a character to a goal;
 - :mod:`.geometry`: clicks onto the floor, the figure as bone segments, drawn paths to waypoints;
 - :mod:`.keep`: a clip as .npz, BVH or robot CSV bytes;
-- :mod:`.server`, :mod:`.scene`, :mod:`.panel`: the page, built on viser (the optional ``studio``
+- :mod:`.server`, :mod:`.view`, :mod:`.panel`: the page, built on viser (the optional ``studio``
   extra, ``pip install "motion-env[studio]"``), imported only by the command that serves it.
 """
 

@@ -12,7 +12,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from motion_env.motion.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS
-from motion_env.render.scene import LEFT_COLOR, RIGHT_COLOR, SPINE_COLOR, hex_rgb
+from motion_env.render.drawing import LEFT_COLOR, RIGHT_COLOR, SPINE_COLOR, hex_rgb
 
 __all__ = [
     "ARENA_HALF_SIZE",

@@ -30,8 +30,8 @@ import viser
 from motion_env.motion.skeleton import FPS
 from motion_env.studio.geometry import floor_point
 from motion_env.studio.panel import CLICK_MODES, ControlPanel, notify
-from motion_env.studio.scene import SceneView
 from motion_env.studio.session import StudioSession
+from motion_env.studio.view import SceneView
 
 __all__ = ["MAX_LAG", "Studio"]
 

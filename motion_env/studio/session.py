@@ -23,12 +23,13 @@ from typing import Any
 import numpy as np
 
 from motion_env.generation.request import check_feasible, check_text
+from motion_env.joint_targets import JointTargets
 from motion_env.motion.skeleton import FPS, NUM_JOINTS
 from motion_env.motion.types import Motion
 from motion_env.objectives import HeightLimit
 from motion_env.studio.agent import GoalAgent
 from motion_env.studio.geometry import resample_path
-from motion_env.studio.routes import ARRIVE_RADIUS, Route
+from motion_env.studio.route_progress import ARRIVE_RADIUS, Route
 from motion_env.studio.state import (
     Snapshot,
     Stats,
@@ -37,7 +38,6 @@ from motion_env.studio.state import (
     check_number,
     check_xz,
     start_positions,
-    target_rows,
 )
 
 __all__ = ["MAX_CHARACTERS", "StudioSession"]
@@ -64,7 +64,7 @@ class _Character:
         self.route = Route()
         self.agent: GoalAgent | None = None
         self.captions_log: list[tuple[int, str]] = [(0, caption)]  # (frame, caption) changes
-        self.targets: dict[tuple[int, int], np.ndarray] = {}  # (frame, joint) -> (3,) world x, y, z
+        self.targets = JointTargets.empty()  # frames of the character's episode
         self.head_limit: float | None = None  # metres
 
 
@@ -107,7 +107,7 @@ class StudioSession:
         for c in chars:
             c.route.restart()
             c.captions_log = [(0, c.caption)]
-            c.targets = {}  # frames of the old episode
+            c.targets = JointTargets.empty()  # frames of the old episode
             if c.agent is not None:
                 c.agent = GoalAgent(c.agent.goal, self._obstacles)
         routes = [c.route.ahead(0) for c in chars]
@@ -160,12 +160,11 @@ class StudioSession:
             # The agent looks again once per token (4 frames): re-planning is what costs.
             if c.agent is not None and frame % 4 == 0:
                 self._update_agent(i, pelvis)
-            if c.targets:
-                met = [key for key in c.targets if key[0] == frame]  # drawn grey from now on
-                gone = [key for key in c.targets if key[0] < frame - TARGET_SHOWN_FRAMES]
-                for key in gone:
-                    del c.targets[key]
-                if met or gone:
+            if len(c.targets):
+                met = (c.targets.frames == frame).any()  # drawn grey from now on
+                shown = c.targets.between(frame - TARGET_SHOWN_FRAMES, None)
+                if met or len(shown) < len(c.targets):
+                    c.targets = shown
                     self._version += 1
 
     def _update_agent(self, i: int, pelvis: np.ndarray) -> None:
@@ -358,7 +357,7 @@ class StudioSession:
         with self._lock:
             frame = self._frame + max(1, round(delay * FPS))
             c = self._chars[i]
-            c.targets[(frame, j)] = np.array([point[0], y, point[1]], np.float64)
+            c.targets = c.targets.with_entry(frame, j, (point[0], y, point[1]))
             self._send_targets(i)
             return frame
 
@@ -366,23 +365,14 @@ class StudioSession:
         """Character `index` has no joint targets any more (one being eased into lets go)."""
         i = check_index(index, len(self._chars))
         with self._lock:
-            self._chars[i].targets = {}
+            self._chars[i].targets = JointTargets.empty()
             self._send_targets(i)
 
     def _send_targets(self, i: int) -> None:
-        """Give character i's joint targets ahead to the stream (held lock)."""
-        ahead = {key: xyz for key, xyz in self._chars[i].targets.items() if key[0] >= self._frame}
-        array = None
-        if ahead:
-            last = max(frame for frame, _ in ahead)
-            array = np.full((last - self._frame + 1, NUM_JOINTS, 3), np.nan)
-            for (frame, j), xyz in ahead.items():
-                array[frame - self._frame, j] = xyz
-        # The stream warns about targets of frames it has decoded already: those are the ones it
-        # has met (or is meeting) before this call, which only re-sends them with the new one.
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            self._stream.set_joint_targets(array, index=i, first_frame=self._frame)
+        """Give character i's joint targets ahead to the stream (held lock); the stream keeps
+        those it has not met yet and is not surprised by the ones it already had."""
+        ahead = self._chars[i].targets.between(self._frame, None)
+        self._stream.set_joint_targets(ahead if len(ahead) else None, index=i)
         self._version += 1
 
     def set_head_limit(self, index: int, max_height: float | None) -> None:
@@ -427,7 +417,7 @@ class StudioSession:
             obstacles=np.array(self._obstacles, np.float64).reshape(-1, 3),
             captions=[c.caption for c in chars],
             version=(self._version, *(c.route.version for c in chars)),
-            joint_targets=[target_rows(c.targets) for c in chars],
+            joint_targets=[c.targets.rows() for c in chars],
         )
 
     def stats(self, index: int = 0) -> Stats:
@@ -443,7 +433,7 @@ class StudioSession:
             to_next = None if target is None else float(np.linalg.norm(pelvis[-1] - target))
             steps = list(self._step_ms) or [0.0]
             left = 0 if c.route.reached or not len(c.route) else len(c.route) - c.route.next
-            targets = sum(frame >= self._frame for frame, _ in c.targets)
+            targets = len(c.targets.between(self._frame, None))
             control = self._stream.control_summary(i)
             return Stats(
                 self._frame, steps[-1], max(steps), speed, to_next, left, targets, control, c.head_limit

@@ -19,7 +19,6 @@ __all__ = [
     "check_number",
     "check_xz",
     "start_positions",
-    "target_rows",
 ]
 
 START_SPACING = 1.5  # metres between the characters of a crowd at the start
@@ -89,12 +88,6 @@ def check_number(value: Any, low: float, high: float, what: str, unit: str) -> f
     if not (np.isfinite(number) and low <= number <= high):
         raise ValueError(f"{what} must be from {low:g} to {high:g} {unit}, got {value!r}")
     return number
-
-
-def target_rows(targets: dict[tuple[int, int], np.ndarray]) -> np.ndarray:
-    """{(frame, joint): xyz} -> (K, 5) frame, joint, x, y, z, by frame."""
-    rows = [(frame, j, *xyz) for (frame, j), xyz in sorted(targets.items())]
-    return np.array(rows, np.float64).reshape(-1, 5)
 
 
 def start_positions(count: int) -> np.ndarray:

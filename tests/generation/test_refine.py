@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 import torch
 
+from motion_env.generation.closed_form import FADE, causal_field, residual_field, solve_limbs
 from motion_env.generation.feet import two_bone_ik
 from motion_env.generation.recompose import local_pose_from_features, recompose
-from motion_env.generation.targets import FADE, causal_field, finish, residual_field
 from motion_env.generation.torch_body import frame_yaw, local_pose_torch, place_on_path_torch
 from motion_env.motion.features import joints_to_features
 from motion_env.motion.kinematics import bone_lengths, with_bone_lengths
@@ -102,7 +102,7 @@ def test_finish_meets_reachable_targets_and_keeps_bones(walk) -> None:
     targets[20, LEFT_FOOT] = walk[20, LEFT_FOOT] + [0.06, 0.0, 0.05]
     targets[40, 0] = walk[40, 0] + [0.0, -0.06, 0.0]
     ceiling = float(walk[:, HEAD, 1].min()) - 0.1
-    out = finish(walk, targets, [HeightLimit("head", max_height=ceiling, frames=(45, 55))],
+    out = solve_limbs(walk, targets, [HeightLimit("head", max_height=ceiling, frames=(45, 55))],
                  np.zeros((len(walk), 2), bool))  # fmt: skip
     known = ~np.isnan(targets[..., 0])
     assert np.linalg.norm(out[known] - targets[known], axis=-1).max() < 1e-3

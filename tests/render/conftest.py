@@ -10,7 +10,7 @@ import pytest
 from motion_env import motion as M
 from motion_env import skeleton as S
 from motion_env.motion.types import Motion
-from motion_env.render.scene import hex_rgb
+from motion_env.render.drawing import hex_rgb
 
 SMALL = {"width": 160, "height": 120}
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from motion_env.render import render_frame
-from motion_env.render.scene import HIGHLIGHT_COLOR, LEFT_COLOR, RIGHT_COLOR, TARGET_COLOR
+from motion_env.render.drawing import HIGHLIGHT_COLOR, LEFT_COLOR, RIGHT_COLOR, TARGET_COLOR
 
 
 def test_render_frame_shape_and_left_right_colours(walker, mask, small):
@@ -79,7 +79,7 @@ def test_render_frame_names_bad_arguments(walker):
 
 
 def test_timed_waypoints_are_labelled_in_frames_then_seconds(walker, small):
-    from motion_env.render.scene import waypoint_time
+    from motion_env.render.drawing import waypoint_time
     from motion_env.render.skeleton import SkeletonRenderer
 
     assert waypoint_time(40, 20) == "f40 (2.0 s)" and waypoint_time(40.5, 20) == "f40.5 (2.0 s)"

@@ -8,7 +8,7 @@ import pytest
 
 from motion_env.motion.types import Motion
 from motion_env.render import render_video
-from motion_env.render.scene import HIGHLIGHT_COLOR, LEFT_COLOR
+from motion_env.render.drawing import HIGHLIGHT_COLOR, LEFT_COLOR
 from motion_env.render.video import VideoWriter, check_video_path
 
 

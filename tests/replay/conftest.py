@@ -13,7 +13,7 @@ import pytest
 from motion_env.motion.skeleton import NUM_JOINTS
 from motion_env.motion.types import Motion
 from motion_env.replay.humanoid import from_mujoco, rest_positions
-from motion_env.replay.scene import model_index
+from motion_env.replay.mjcf import model_index
 
 BANDAI_DIR = "bandai/dataset-2/bvh"
 

@@ -8,7 +8,7 @@ import numpy as np
 from motion_env.motion.types import Motion
 from motion_env.replay import evaluate, measure
 from motion_env.replay.fit import clip_rest_directions, fit_qpos
-from motion_env.replay.scene import load_model, model_index
+from motion_env.replay.mjcf import load_model, model_index
 
 
 def test_fit_reproduces_poses_of_the_model(forward_kinematics) -> None:

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from motion_env.replay import evaluate, evaluate_detailed, measure
-from motion_env.replay.checks import load_thresholds
 from motion_env.replay.fit import clip_rest_directions, fit_qpos, fit_rotations
-from motion_env.replay.scene import load_model, model_index
+from motion_env.replay.mjcf import load_model, model_index
+from motion_env.replay.plausibility import load_thresholds
 from motion_env.replay.tracking import track
 
 

@@ -11,8 +11,8 @@ import pytest
 
 from motion_env.motion.skeleton import JOINT_NAMES
 from motion_env.replay import humanoid, measure
-from motion_env.replay.checks import CHECKS, load_thresholds, thresholds_path
-from motion_env.replay.scene import BODY_XML, MODEL_DIR, load_model, model_index, scene_xml
+from motion_env.replay.mjcf import BODY_XML, MODEL_DIR, load_model, model_index, scene_xml
+from motion_env.replay.plausibility import CHECKS, load_thresholds, thresholds_path
 
 
 def test_model_builds_and_loads() -> None:
@@ -64,7 +64,7 @@ def test_model_folder_holds_scene_body_thresholds_and_readme() -> None:
     files = {p.name for p in MODEL_DIR.iterdir()}
     assert files >= {"README.md", "scene.xml", "humanoid.xml", "thresholds.json"}
     # The shipped body file is the generator's default body: rebuild it with
-    # `python -c "from motion_env.replay.scene import write_body_xml; write_body_xml()"`.
+    # `python -c "from motion_env.replay.mjcf import write_body_xml; write_body_xml()"`.
     assert BODY_XML.read_text() == humanoid.humanoid_xml(), "model/humanoid.xml is out of date"
     # Opened from the folder (as a viewer would), the scene includes that file.
     from_files = mujoco.MjModel.from_xml_path(str(MODEL_DIR / "scene.xml"))
@@ -77,7 +77,7 @@ def test_model_folder_holds_scene_body_thresholds_and_readme() -> None:
 
 
 def test_write_body_xml(tmp_path) -> None:
-    from motion_env.replay.scene import write_body_xml
+    from motion_env.replay.mjcf import write_body_xml
 
     out = write_body_xml(tmp_path / "humanoid.xml")
     assert out.read_text() == BODY_XML.read_text()

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from motion_env.replay import format_report
-from motion_env.replay.checks import load_thresholds, thresholds_path
+from motion_env.replay.plausibility import load_thresholds, thresholds_path
 from motion_env.replay.robot import (
     ROBOT_CHECKS,
     SHARED_CHECKS,

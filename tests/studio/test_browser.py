@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from motion_env.render.scene import LEFT_COLOR, RIGHT_COLOR, hex_rgb
+from motion_env.render.drawing import LEFT_COLOR, RIGHT_COLOR, hex_rgb
 
 CHROMIUM = (
     os.environ.get("MOTION_ENV_CHROMIUM") or shutil.which("chromium") or shutil.which("chromium-browser")

@@ -9,7 +9,7 @@ from motion_env.motion.skeleton import JOINT_INDEX
 from motion_env.motion.types import Motion
 from motion_env.studio.geometry import BONES, bone_colors, bone_segments, floor_point, resample_path
 from motion_env.studio.keep import clip_file
-from motion_env.studio.routes import Route
+from motion_env.studio.route_progress import Route
 from motion_env.studio.session import MAX_CHARACTERS, StudioSession
 
 

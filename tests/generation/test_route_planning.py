@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from motion_env.generation.route import MAX_UNTIMED_LEG, SPLIT_LEG, plan_route
+from motion_env.generation.route_planning import MAX_UNTIMED_LEG, SPLIT_LEG, plan_route
 from motion_env.motion.trajectory import validate_waypoints
 
 

@@ -39,7 +39,7 @@ from motion_env.replay.humanoid import BALL_JOINTS, DEFAULT_MASS
 from motion_env.replay.inputs import check_mass, check_motion
 from motion_env.replay.judging import check_entry, runs, sentence, verdict
 from motion_env.replay.kinematic import CONTACT_HEIGHT, Measurements, measure
-from motion_env.replay.scene import MODEL_DIR
+from motion_env.replay.mjcf import MODEL_DIR
 
 GRAVITY = 9.81
 CHECKS: tuple[str, ...] = (

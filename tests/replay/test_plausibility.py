@@ -1,4 +1,4 @@
-"""Tests of motion_env.replay.checks: the checks, the verdict and the report (evaluate)."""
+"""Tests of motion_env.replay.plausibility: the checks, the verdict and the report (evaluate)."""
 
 from __future__ import annotations
 
@@ -11,12 +11,12 @@ import pytest
 from motion_env.io.bvh import load_bvh
 from motion_env.motion.types import Motion
 from motion_env.replay import corruptions, evaluate, format_report
-from motion_env.replay.checks import CHECKS, SKATE_WINDOW, load_thresholds, min_frames
+from motion_env.replay.plausibility import CHECKS, SKATE_WINDOW, load_thresholds, min_frames
 
 
 def test_evaluate_is_the_function_of_the_package() -> None:
     import motion_env.replay
-    from motion_env.replay import checks
+    from motion_env.replay import plausibility as checks
 
     assert motion_env.replay.evaluate is checks.evaluate and callable(motion_env.replay.evaluate)
 

@@ -6,7 +6,7 @@ frame, what a :class:`~motion_env.studio.session.Snapshot` holds; only what move
 figures every frame, the trails every few frames, waypoints and obstacles when they change), since
 every node update is a message to every open tab.
 
-Colours are the stick-figure videos' (:mod:`motion_env.render.scene`): left limbs blue, right
+Colours are the stick-figure videos' (:mod:`motion_env.render.drawing`): left limbs blue, right
 limbs orange, the spine dark grey, the trail blue, waypoints purple, the next one pink; a joint
 target is a red sphere on a thin stem from the floor, labelled with its joint and time, grey once met.
 """
@@ -19,7 +19,7 @@ import numpy as np
 import viser
 
 from motion_env.motion.skeleton import FPS, JOINT_INDEX, JOINT_NAMES
-from motion_env.render.scene import (
+from motion_env.render.drawing import (
     HIGHLIGHT_COLOR,
     MAX_LABELLED_WAYPOINTS,
     OBSTACLE_COLOR,

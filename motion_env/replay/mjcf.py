@@ -6,7 +6,7 @@
   for a mass and a rest pose, compiled once per pair and copied per call;
 - :func:`model_index`: the ids of the canonical joints, ball joints and geoms in that model;
 - :func:`write_body_xml`: rewrite ``model/humanoid.xml``, the default body, after a change to
-  :mod:`motion_env.replay.humanoid` (``python -c "from motion_env.replay.scene import
+  :mod:`motion_env.replay.humanoid` (``python -c "from motion_env.replay.mjcf import
   write_body_xml; write_body_xml()"``); a test checks that the file matches the generator.
 """
 

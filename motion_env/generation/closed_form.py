@@ -9,7 +9,7 @@ targets by optimising what the generator produces; this module finishes the job 
   its targets exactly and the body's other targeted joints line up horizontally;
 - :func:`detour`: the root path bent around :class:`~motion_env.objectives.KeepOut` cylinders and
   pushed inside :class:`~motion_env.objectives.StayInside` polygons, by the body's reach;
-- :func:`finish`: closed-form IK on the limb chains, in order: pelvis height (head and pelvis
+- :func:`solve_limbs`: closed-form IK on the limb chains, in order: pelvis height (head and pelvis
   height limits; the legs keep the feet where they were), spine (head targets: a two-bone solve
   pelvis - spine3 - head), legs (ankle and toe targets; feet planted elsewhere stay planted),
   arms (wrist targets). Every bone keeps its length.
@@ -36,7 +36,7 @@ __all__ = [
     "MISS_TOLERANCE",
     "causal_field",
     "detour",
-    "finish",
+    "solve_limbs",
     "implied_route",
     "limit_bounds",
     "residual_field",
@@ -448,7 +448,7 @@ def _solve_arms(j: np.ndarray, targets: np.ndarray, low: np.ndarray, high: np.nd
         j[rows, elbow], j[rows, wrist] = new_elbow, new_wrist
 
 
-def finish(
+def solve_limbs(
     joints: np.ndarray,
     targets: np.ndarray,
     limits: list,
