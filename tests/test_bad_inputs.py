@@ -336,3 +336,11 @@ def test_odd_captions_warn_once_and_still_move(pretrained_generator, text: str, 
     for clip in clips:
         root = clip.joints[:, 0, [0, 2]]
         assert np.isfinite(clip.joints).all() and np.linalg.norm(root[-1] - root[0]) > 2.0  # route: 2.8 m
+
+
+def test_a_route_faster_than_the_data_warns_naming_the_frames() -> None:
+    from motion_env.generation.request import SPRINT_SPEED, check_request
+
+    with pytest.warns(UserWarning, match=r"row 0 .* asks for 6 m/s between frames 0 and 20: faster than"):
+        check_request("a person runs", [[0, 6, 20]], 40, 0, None)
+    assert SPRINT_SPEED < 6 < MAX_SPEED

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import motion_env
-from motion_env.generation.request import check_joint_targets
+from motion_env.generation.request_controls import check_joint_targets
 from motion_env.joint_targets import JointTargets
 
 
@@ -75,3 +75,12 @@ def test_generator_and_stream_read_sparse_as_dense() -> None:
         stream.set_joint_targets(targets, first_frame=0 if targets is dense else None)
         runs.append(np.stack([stream.step() for _ in range(24)]))
     np.testing.assert_array_equal(runs[0], runs[1])
+
+
+def test_unreachable_targets_warn_naming_the_frames() -> None:
+    high = JointTargets.from_entries([(12, "head", (0.0, 2.4, 1.0)), (30, "right_wrist", (0.0, 2.0, 1.0))])
+    with pytest.warns(UserWarning, match=r"head at frame 12 \(y = 2.40 m\) is above what that joint can reach"):
+        check_joint_targets(high, 40)
+    low = JointTargets.from_entries([(5, "left_wrist", (0.0, -0.3, 0.0))])
+    with pytest.warns(UserWarning, match="left_wrist at frame 5 .* below the floor"):
+        check_joint_targets(low, 40)

@@ -32,10 +32,11 @@ The choice between the two spaces (and the defaults below) was made by measureme
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 import torch
+from scipy.ndimage import gaussian_filter1d
 
 from motion_env.generation.closed_form import (
     MISS_TOLERANCE,
@@ -47,12 +48,11 @@ from motion_env.generation.closed_form import (
 )
 from motion_env.generation.recompose import align_heading_to_travel
 from motion_env.generation.torch_body import frame_yaw, local_pose_torch, place_on_path_torch
+from motion_env.models.normalizer import Normalizer
+from motion_env.models.vqvae import VQVAE
 from motion_env.motion.skeleton import FOOT_CONTACT, FOOT_JOINTS
 from motion_env.motion.validation import check_positive_ints
 from motion_env.objectives import HeightLimit, KeepOut, StayInside
-
-if TYPE_CHECKING:  # the pipeline runs this stage; the stage only reads the pipeline's parts
-    from motion_env.generation.pipeline import Pipeline
 
 __all__ = [
     "SPACES",
@@ -67,6 +67,22 @@ TARGET_SCALE = 0.05
 """Metres: a target this far off costs 1 (the other terms are weighed against it)."""
 VELOCITY_SCALE = 0.01
 """Metres per frame: a joint whose frame-to-frame step changes by this much costs 1."""
+
+
+class Pipeline(Protocol):
+    """What this stage reads of the :class:`~motion_env.generation.pipeline.Pipeline` that runs it."""
+
+    vqvae: VQVAE
+    normalizer: Normalizer
+    device: torch.device
+
+    def compose(
+        self, features: np.ndarray, root_path: np.ndarray, num_frames: int
+    ) -> tuple[np.ndarray, np.ndarray]: ...
+
+    def place_clip(
+        self, features: np.ndarray, root_path: np.ndarray, num_frames: int
+    ) -> tuple[np.ndarray, np.ndarray]: ...
 
 
 @dataclass(frozen=True)
@@ -88,6 +104,12 @@ class RefineConfig:
         objective_weight: weight of the objectives' costs.
         tolerance: metres; the optimiser stops once every target is this close (the closed-form
             finish does the rest).
+        spread: frames; the optimiser's change to the decoded features is spread in time by a
+            Gaussian of this width (0: as optimised). Each token's latent moves on its own, so
+            unspread the change can jump at token boundaries; measured on held-out takes with
+            joint targets, 4 frames took the largest acceleration of a controlled clip, against
+            the same seed without targets, from at most 3.7x to 1.6x (90th percentile 1.7x ->
+            1.4x) for 0.1 cm more error before the closed-form finish.
     """
 
     space: str = "latent"
@@ -98,6 +120,7 @@ class RefineConfig:
     smooth_weight: float = 0.0
     objective_weight: float = 4.0
     tolerance: float = 0.03
+    spread: float = 4.0
 
     def __post_init__(self) -> None:
         if self.space not in SPACES:
@@ -110,6 +133,7 @@ class RefineConfig:
             "smooth_weight",
             "objective_weight",
             "tolerance",
+            "spread",
         ):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"RefineConfig.{name} must be >= 0, got {getattr(self, name)!r}")
@@ -270,6 +294,19 @@ def _cost(
     return cost
 
 
+def _smoothed_change(before: np.ndarray, after: np.ndarray, sigma: float) -> np.ndarray:
+    """`before` plus the optimiser's change to it, spread in time by a Gaussian of `sigma` frames.
+
+    The optimiser moves each token's latent on its own, so its change to the features can jump
+    at token boundaries: a pop the sampled clip did not have. Spread, the change keeps its size
+    over the frames around it (the closed-form finish meets the targets exactly either way).
+    """
+    if sigma <= 0:
+        return after
+    change = gaussian_filter1d(after.astype(np.float64) - before, sigma, axis=0, mode="nearest")
+    return (before + change).astype(np.float32)
+
+
 def _violations(objectives: list, joints: np.ndarray) -> list[float]:
     out = []
     for obj in objectives:
@@ -317,7 +354,8 @@ def refine_clip(
     costs = [o for o in objectives if not isinstance(o, HeightLimit)]
     if config.space != "none" and (not np.isnan(targets).all() or costs):
         aligned = align_heading_to_travel(path)[:n]
-        features, steps = optimise_body(pipe, codes, gpt_logits, features, aligned, targets, costs, config)
+        optimised, steps = optimise_body(pipe, codes, gpt_logits, features, aligned, targets, costs, config)
+        features = _smoothed_change(features, optimised, config.spread)
     contacts = features[:t_len, FOOT_CONTACT] > 0.5
     planted = contacts.reshape(t_len, 2, 2).any(axis=2)
     margin = 0.0

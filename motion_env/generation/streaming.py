@@ -38,8 +38,6 @@ from motion_env.generation.pipeline import CONTROLLER_STREAM, TOKEN_STREAM, Pipe
 from motion_env.generation.recompose import route_anchors, spread_residuals
 from motion_env.generation.request import (
     check_feasible,
-    check_joint_targets,
-    check_objectives,
     check_route,
     check_start,
     check_starts,
@@ -48,6 +46,7 @@ from motion_env.generation.request import (
     per_row_waypoints,
     resolve_seed,
 )
+from motion_env.generation.request_controls import check_joint_targets, check_objectives
 from motion_env.generation.route_planning import plan_route
 from motion_env.generation.stream_control import StreamControl
 from motion_env.joint_targets import JointTargets
@@ -125,7 +124,7 @@ class MotionStream:
         self._texts = list(texts)
         start_arr = check_starts(starts, b)
         self.infeasible = infeasible
-        self._routes = [  # planned routes (generation.route): what the controller and snapping see
+        self._routes = [  # planned routes (generation.route_planning): what the controller and snapping see
             plan_route(
                 check_feasible(route, start_arr[i, :2], infeasible, what=f"waypoints of character {i}"),
                 start_arr[i, :2],

@@ -28,9 +28,9 @@ import numpy as np
 import torch
 from torch import nn
 
-from motion_env.motion.checks import check_above, check_at_least
 from motion_env.motion.skeleton import FPS
 from motion_env.motion.trajectory import validate_waypoints
+from motion_env.motion.validation import check_above, check_at_least, check_interval
 
 # Features per waypoint slot (see PathController.waypoint_features).
 WAYPOINT_FEATURES = 9
@@ -71,8 +71,7 @@ class ControllerConfig:
     def __post_init__(self) -> None:
         check_at_least(self, 1, "text_dim", "text_proj", "num_slots", "hidden", "mlp")
         check_above(self, 0, "arrive_radius", "step_scale", "turn_scale", "max_time_to_go")
-        if not 0 < self.seek_rate <= 1:
-            raise ValueError(f"ControllerConfig.seek_rate must be in (0, 1], got {self.seek_rate}")
+        check_interval(self, "(0, 1]", "seek_rate")
         check_at_least(self, 0, "h0_noise")
 
     @property
@@ -168,6 +167,7 @@ class PathController(nn.Module):
         # Start near "stand still": the rollout is stable from the first training step.
         nn.init.zeros_(self.out[-1].weight)
         nn.init.zeros_(self.out[-1].bias)
+        self._text_cache: tuple[torch.Tensor, tuple[int, int], torch.Tensor] | None = None
 
     @property
     def device(self) -> torch.device:
@@ -364,12 +364,24 @@ class PathController(nn.Module):
         final = (state.count > 0) & (state.queue == state.count - 1)
         return feats.reshape(b, -1), offset[:, 0], final
 
+    def _text_features(self, text: torch.Tensor) -> torch.Tensor:
+        """(B, text_proj) the captions' projection. A rollout keeps one caption tensor for many
+        frames, so without gradients the projection is made once per tensor, not every frame."""
+        if torch.is_grad_enabled():
+            return self.text_proj(text)
+        # The weights' version counters change with every optimiser step or load.
+        version = (self.text_proj.weight._version, self.text_proj.bias._version)
+        cache = self._text_cache
+        if cache is None or cache[0] is not text or cache[1] != version:
+            cache = self._text_cache = (text, version, self.text_proj(text))  # holding `text` keeps it alive
+        return cache[2]
+
     def step(self, state: ControllerState) -> ControllerState:
         """Advance every character by one frame; returns the new state (its ``root`` is the new frame)."""
         c = self.config
         wfeat, target, final = self.waypoint_features(state)
         # Velocities in m/s and rad/s are O(1) already; halve them to keep sprints in range.
-        x = torch.cat([self.text_proj(state.text), wfeat, 0.5 * state.vel], dim=-1)
+        x = torch.cat([self._text_features(state.text), wfeat, 0.5 * state.vel], dim=-1)
         z = self.inp(x)  # (B, mlp)
         hidden = self.gru(z, state.hidden)  # (B, hidden)
         raw = self.out(torch.cat([hidden, z], dim=-1))  # (B, 3)

@@ -188,7 +188,8 @@ def test_resample() -> None:
 
 def test_wrong_shapes_raise_clear_errors() -> None:
     bad = np.zeros((10, 21, 3))
-    for fn in (M.canonicalize, M.inverse_kinematics, M.joints_to_features, M.rescale_bones, M.with_bone_lengths):
+    fns = (M.canonicalize, M.inverse_kinematics, M.joints_to_features, M.rescale_bones, M.with_bone_lengths)
+    for fn in fns:
         with pytest.raises(ValueError, match=r"\(T, 22, 3\).*\(10, 21, 3\)"):
             fn(bad)
     with pytest.raises(ValueError, match="T >= 2"):

@@ -1,5 +1,5 @@
 """Tests of the replay model: the generated body (replay.humanoid), the compiled scene
-(replay.scene) and the Menagerie-style folder motion_env/replay/model/."""
+(replay.mjcf) and the Menagerie-style folder motion_env/replay/model/."""
 
 from __future__ import annotations
 
