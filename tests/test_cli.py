@@ -10,6 +10,7 @@ import pytest
 
 from motion_env.args import parse_waypoints
 from motion_env.cli import main
+from motion_env.evaluation.bench import REFERENCE_CALIBRATION_S
 from motion_env.motion.types import Motion
 
 _ENCODERS: dict[str, object] = {}
@@ -96,6 +97,13 @@ def test_bench_runs_and_writes_json(tmp_path, capsys) -> None:
     assert env["steps"] == 8 and env["p99"] >= env["median"] > 0
     learner = results["env_step_ms_learner"]
     assert learner["agent"] == "learner" and learner["steps"] == 8
+    # every speed also as its quiet-machine equivalent, scaled by the calibration beside it
+    clip = results["clip_latency_ms"]
+    ratio = REFERENCE_CALIBRATION_S * 1000 / clip["calibration_ms"]
+    assert clip["quiet"]["median"] == pytest.approx(clip["median"] * ratio)
+    stream = results["stream"][0]
+    ratio = REFERENCE_CALIBRATION_S * 1000 / stream["calibration_ms"]
+    assert stream["quiet"]["frames_per_s"] * ratio == pytest.approx(stream["frames_per_s"])
     assert [(r["agent"], r["num_envs"]) for r in results["vector_env"]] == [
         ("route", 1), ("route", 3), ("learner", 1), ("learner", 3)
     ]  # fmt: skip
@@ -106,6 +114,7 @@ def test_bench_runs_and_writes_json(tmp_path, capsys) -> None:
     assert all(s["frames_per_s"] > 0 for s in results["stream"])
     printed = capsys.readouterr().out
     assert "clip latency" in printed and "vector env, N=3, new targets" in printed
+    assert "quiet equiv." in printed
 
 
 def _tiny_dataset(root: Path, clips: int = 6, frames: int = 61) -> Path:

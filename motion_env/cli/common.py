@@ -167,9 +167,10 @@ def set_threads(threads: int) -> None:
 
 
 CAPTION_READER_HELP = (
-    "which caption adapter reads the captions: default (the weights' caption_adapter.pt), none (the "
-    "models read the text encoder as trained, without the adapter), or a named one such as mpnet "
-    "(caption_adapter.mpnet.pt; needs the optional mpnet encoder)"
+    "which caption reader (a text encoder and its caption adapter) reads the captions: default "
+    "(the weights' caption_adapter.pt), none (the models read the text encoder as trained, without "
+    "the adapter), or a named one such as mpnet (caption_adapter.mpnet.pt; needs the optional mpnet "
+    "encoder)"
 )
 
 

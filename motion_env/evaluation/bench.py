@@ -16,6 +16,13 @@ What is measured (the definitions of ``docs/metrics.md``):
   (``vectorization_mode="vector_entry_point"``, one frame per step) with N = 1, 16, 64 characters,
   over ``vector_steps`` steps after a warm-up, in the same two cases.
 
+Speed on a shared machine: the machine this runs on may be busy, and its speed drifts by 2x within
+a day. Beside every measurement the bench times a fixed calibration workload (:func:`calibration_s`:
+a GRU cell (128 -> 384) stepped 200 times plus 50 blocks of 32x192 @ 192x768 @ 768x192 matmuls at
+batch 1, one thread; about :data:`REFERENCE_CALIBRATION_S` on the project's 2-core machine when it
+is quiet) and reports each number also as its quiet-machine equivalent: times x reference /
+calibration, rates x calibration / reference. Before/after comparisons use the equivalents.
+
 This is the project's one bench; ``motion-env bench`` runs it and prints a table.
 """
 
@@ -32,6 +39,47 @@ import torch
 BENCH_TEXT = "a person walks forward, then turns to the left"
 # Timed waypoints of the latency clip: x, z, frame index.
 BENCH_WAYPOINTS = np.array([[0.0, 2.5, 50], [2.0, 4.5, 110], [4.0, 4.5, 170]], np.float32)
+
+
+REFERENCE_CALIBRATION_S = 0.032
+"""Seconds :func:`calibration_s` takes on the project's 2-core CPU machine when it is quiet (30-34 ms)."""
+# Result keys that are rates (scaled the other way from times) and keys that are not speeds.
+_RATES = ("frames_per_s", "steps_per_s")
+_NOT_SPEED = ("runs", "frames", "batch", "steps", "episodes_reset", "num_envs", "calibration_ms")
+
+
+def calibration_s() -> float:
+    """Seconds of the fixed calibration workload (see the module docstring), on one thread."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        gen = torch.Generator().manual_seed(0)
+        cell = torch.nn.GRUCell(128, 384)
+        w1, w2 = torch.randn(192, 768, generator=gen), torch.randn(768, 192, generator=gen)
+        x, h, y = torch.randn(1, 128, generator=gen), torch.zeros(1, 384), torch.randn(32, 192, generator=gen)
+        t0 = time.perf_counter()
+        with torch.no_grad():
+            for _ in range(200):
+                h = cell(x, h)
+            for _ in range(50):
+                y = torch.relu(y @ w1) @ w2 * 1e-2 + y
+        return time.perf_counter() - t0
+    finally:
+        torch.set_num_threads(threads)
+
+
+def calibrated(measure: Any, *args: Any, **kwargs: Any) -> dict[str, Any]:
+    """Run ``measure(*args, **kwargs)`` (a dict of times in ms and rates) between two calibrations;
+    the dict gains ``calibration_ms`` and ``quiet``: each speed as its quiet-machine equivalent."""
+    c0 = calibration_s()
+    result = measure(*args, **kwargs)
+    calib = (c0 + calibration_s()) / 2
+    scale = REFERENCE_CALIBRATION_S / calib
+    quiet = {}
+    for key, value in result.items():
+        if isinstance(value, int | float) and not isinstance(value, bool) and key not in _NOT_SPEED:
+            quiet[key] = value / scale if key in _RATES else value * scale
+    return {**result, "calibration_ms": calib * 1000.0, "quiet": quiet}
 
 
 def _percentiles(values: list[float], qs: tuple[int, ...]) -> dict[str, float]:
@@ -210,24 +258,33 @@ def run_bench(
         "device": str(device),
         "hardware": hardware(),
         "parameters": gen.num_parameters(),
-        "clip_latency_ms": time_clip(gen, runs, num_frames),
-        "stream": [time_stream(gen, b, stream_frames) for b in batch_sizes],
+        "clip_latency_ms": calibrated(time_clip, gen, runs, num_frames),
+        "stream": [calibrated(time_stream, gen, b, stream_frames) for b in batch_sizes],
         "stream_lookahead_frames": gen.path_horizon,
         "control_delay_frames": gen.rate,
     }
     if env_steps > 0:
-        results["env_step_ms"] = time_env(gen, env_steps)
-        results["env_step_ms_learner"] = time_env(gen, env_steps, agent="learner")
+        results["env_step_ms"] = calibrated(time_env, gen, env_steps)
+        results["env_step_ms_learner"] = calibrated(time_env, gen, env_steps, agent="learner")
     if vector_steps > 0:
         results["vector_env"] = [
-            vector_throughput(gen, n, steps=vector_steps, agent=agent) for agent in AGENTS for n in num_envs
+            calibrated(vector_throughput, gen, n, steps=vector_steps, agent=agent)
+            for agent in AGENTS
+            for n in num_envs
         ]
     return results
 
 
-def _row(label: str, median: float, tail: float | None, unit: str, digits: int = 1) -> str:
+def _row(
+    label: str, median: float, tail: float | None, unit: str, digits: int = 1, quiet: float | None = None
+) -> str:
     tail_text = "" if tail is None else f"{tail:.{digits}f}"
-    return f"{label:<44}{median:>10.{digits}f}{tail_text:>10}{unit:>10}"
+    quiet_text = "" if quiet is None else f"{quiet:.{digits}f}"
+    return f"{label:<44}{median:>10.{digits}f}{tail_text:>10}{quiet_text:>12}{unit:>10}"
+
+
+def _quiet(result: dict[str, Any], key: str) -> float | None:
+    return result.get("quiet", {}).get(key)
 
 
 def format_results(results: dict[str, Any]) -> str:
@@ -236,11 +293,10 @@ def format_results(results: dict[str, Any]) -> str:
     head = f"model: {results['model']}{' (UNTRAINED)' if results['untrained'] else ''}"
     head += f"   device: {results['device']}   cpu: {hw['cpu']} x{hw['cpu_count']}"
     head += f", torch threads {hw['torch_threads']}" + (f"   gpu: {hw['gpu']}" if "gpu" in hw else "")
-    lines = [head, "", f"{'measurement':<44}{'median':>10}{'p90/p99':>10}{'unit':>10}"]
+    lines = [head, "", f"{'measurement':<44}{'median':>10}{'p90/p99':>10}{'quiet equiv.':>12}{'unit':>10}"]
     c = results["clip_latency_ms"]
-    lines.append(
-        _row(f"clip latency ({c['frames']} frames, batch 1, {c['runs']} runs)", c["median"], c["p90"], "ms")
-    )
+    label = f"clip latency ({c['frames']} frames, batch 1, {c['runs']} runs)"
+    lines.append(_row(label, c["median"], c["p90"], "ms", quiet=_quiet(c, "median")))
     for s in results["stream"]:
         b = s["batch"]
         lines.append(
@@ -249,21 +305,44 @@ def format_results(results: dict[str, Any]) -> str:
         lines.append(
             _row(f"stream step, B={b} (median, p99)", s["step_ms_median"], s["step_ms_p99"], "ms", 2)
         )
-        lines.append(_row(f"stream throughput, B={b}", s["frames_per_s"], None, "frames/s", 0))
+        lines.append(
+            _row(
+                f"stream throughput, B={b}", s["frames_per_s"], None, "frames/s", 0, _quiet(s, "frames_per_s")
+            )
+        )
     for key, label in (
         ("env_step_ms", "following the route"),
         ("env_step_ms_learner", "new target each step"),
     ):
         env = results.get(key)
         if env:
-            lines.append(_row(f"env step, {label} (p99)", env["median"], env["p99"], "ms", 2))
-            lines.append(_row(f"env steps/s, {label}", env.get("steps_per_s", 0.0), None, "steps/s", 0))
+            lines.append(
+                _row(f"env step, {label} (p99)", env["median"], env["p99"], "ms", 2, _quiet(env, "p99"))
+            )
+            rate = env.get("steps_per_s", 0.0)
+            lines.append(_row(f"env steps/s, {label}", rate, None, "steps/s", 0, _quiet(env, "steps_per_s")))
     for row in results.get("vector_env", []):
         n, fps, agent = row["num_envs"], row["frames_per_s"], row.get("agent", "route")
         label = "following routes" if agent == "route" else "new targets"
-        lines.append(_row(f"vector env, N={n}, {label}", fps, None, "steps/s", 0))
+        lines.append(
+            _row(f"vector env, N={n}, {label}", fps, None, "steps/s", 0, _quiet(row, "frames_per_s"))
+        )
     lines.append(
         f"streaming: the controller runs {results['stream_lookahead_frames']} frames ahead (paid on the "
         f"first step); a new caption/route acts within {results['control_delay_frames']} frames"
     )
+    calib = [r["calibration_ms"] for r in _measurements(results)]
+    if calib:
+        lines.append(
+            f"quiet equiv.: the number on a quiet machine (calibration workload {min(calib):.0f}-"
+            f"{max(calib):.0f} ms here beside the measurements, {REFERENCE_CALIBRATION_S * 1000:.0f} ms "
+            "when quiet; the p99 column's equivalent for env steps)"
+        )
     return "\n".join(lines)
+
+
+def _measurements(results: dict[str, Any]) -> list[dict[str, Any]]:
+    """Every calibrated measurement of a results dict."""
+    rows = [results.get("clip_latency_ms"), results.get("env_step_ms"), results.get("env_step_ms_learner")]
+    rows += list(results.get("stream", [])) + list(results.get("vector_env", []))
+    return [r for r in rows if r and "calibration_ms" in r]

@@ -164,8 +164,8 @@ class MotionGenerator:
             text_encoder: an already loaded text encoder (default: loaded by the name the
                 checkpoints (or the caption adapter) record, lazily, on the first caption).
             sampling: overrides ``sampling.json``.
-            caption_reader: which caption adapter reads the captions
-                (:func:`motion_env.generation.caption_readers.caption_readers`):
+            caption_reader: which caption reader (a text encoder and the caption adapter trained
+                for it) reads the captions (:func:`motion_env.generation.caption_readers.caption_readers`):
                 None = ``caption_adapter.pt`` when the folder has one; ``"none"`` = no adapter
                 (the models read the encoder's embedding as they were trained); another name =
                 ``caption_adapter.<name>.pt`` (``"mpnet"``: the optional all-mpnet-base-v2 reader).
