@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Evaluate a generator: route following, foot skating, caption steering (see motion_env/evaluate.py).
+"""Evaluate a generator: route following, foot skating, caption steering (motion_env/evaluation/suite.py).
 
 python scripts/evaluate.py --data data/mocap --json out/eval.json            # the shipped model
 python scripts/evaluate.py --data data/mocap --model runs/weights --max-clips 32

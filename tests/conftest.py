@@ -128,7 +128,7 @@ def tiny_classifier():
     """An untrained action/style classifier of a few hundred weights (seed 0)."""
     import torch
 
-    from motion_env.evaluation.classifier import ClassifierConfig, MotionClassifier
+    from motion_env.models.classifier import ClassifierConfig, MotionClassifier
 
     torch.manual_seed(0)
     config = ClassifierConfig(

@@ -269,3 +269,22 @@ def test_json_report_of_bench_is_unchanged_by_the_rules(tmp_path, capsys) -> Non
     argv += ["--stream-frames", "4", "--env-steps", "0", "--vector-steps", "0", "--json", str(out)]
     assert main(argv) == 0
     assert json.loads(out.read_text())["untrained"] is True
+
+
+@pytest.mark.parametrize(
+    ("command", "extra", "message"),
+    [
+        ("control", ["--max-clips", "0"], "ControlSettings.max_clips must be an integer >= 1, got 0"),
+        ("captions", ["--seeds", "0"], "RecognitionSettings.seeds must be an integer >= 1, got 0"),
+        ("natural", ["--per-action", "1"], "NaturalnessSettings.per_action must be an integer >= 2"),
+        ("natural", ["--weights", "nowhere"], "--weights nowhere: no generator weights directory"),
+        ("natural", ["--split", "val"], "--split val: no val.txt"),
+    ],
+)
+def test_eval_checks_its_settings_before_loading_a_model(
+    tmp_path, capsys, no_model, command: str, extra: list[str], message: str
+) -> None:
+    (tmp_path / "index.csv").write_text("name\n")
+    (tmp_path / "test.txt").write_text("")
+    assert main(["eval", command, "--data", str(tmp_path), *extra]) == 2
+    assert message in _error(capsys)

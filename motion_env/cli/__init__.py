@@ -3,8 +3,8 @@
 Each subcommand has an ``add_<name>`` function that declares its arguments and a ``run_<name>``
 function that calls the library: :mod:`.generate` (``generate``, ``bench``), :mod:`.files`
 (``show``, ``replay``), :mod:`.offline` (``data build``, ``train``), :mod:`.export` (``export``),
-:mod:`.retarget` (``retarget``), :mod:`.studio` (``studio``), :mod:`.evaluate` (``eval control``),
-:mod:`.captions` (``captions``);
+:mod:`.retarget` (``retarget``), :mod:`.studio` (``studio``), :mod:`.evaluate` (``eval control``,
+``eval captions``, ``eval natural``), :mod:`.captions` (``captions``);
 :mod:`.common` holds what they share. The heavy modules are imported only by the command that
 needs them, after its cheap checks, so `motion-env --help` and a typo are answered at once.
 

@@ -1,13 +1,21 @@
-"""`motion-env eval control`: joint control and objectives on held-out takes (the evaluation of
-:mod:`motion_env.evaluation.control`; ``scripts/evaluate_control.py`` is the same with the same
-options). `motion-env eval captions`: does a generated clip show the action and style its caption
-names, judged by a classifier of real takes (:mod:`motion_env.evaluation.recognition`;
-``scripts/evaluate_captions.py``)."""
+"""`motion-env eval`: evaluations of a generator on held-out takes of a built dataset.
+
+- ``eval control``: joint control and objectives (:mod:`motion_env.evaluation.control`);
+- ``eval captions``: does a generated clip show the action and style its caption names, judged by
+  a classifier of real takes (:mod:`motion_env.evaluation.recognition`);
+- ``eval natural``: how natural generated motion is next to the real takes, per action
+  (:mod:`motion_env.evaluation.naturalness`).
+
+Each command parses its options into the evaluation's settings dataclass, loads the generator,
+calls the library, prints the tables and writes ``--json``; the library neither parses, prints nor
+sets threads.
+"""
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
 from motion_env.cli.common import (
     CommandError,
@@ -18,15 +26,24 @@ from motion_env.cli.common import (
     set_threads,
 )
 
-__all__ = ["add_captions_options", "add_control_options", "add_eval", "check_captions_options"]
+__all__ = ["add_eval"]
 
 _CONTROL_HELP = "joint targets and objectives: errors, skating, pops, bones, speed (docs/metrics.md)"
+_CAPTIONS_HELP = "captions: action/style recognised by a classifier of real takes, template vs new wordings"
+_NATURAL_HELP = (
+    "naturalness per action: replay plausibility, acceleration, jerk, pops, skating and classifier "
+    "Fréchet distance of held-out takes made again, next to the real takes (docs/metrics.md)"
+)
+_DATA_HELP = "HumanML3D-layout dataset (motion-env data build)"
+_SPLIT_HELP = "held-out split: test (to report) or val (to choose)"
+_CLASSIFIER_HELP = (
+    "classifier checkpoint (default: motion_env/weights/classifier.pt; motion-env train classifier)"
+)
 
 
-def add_control_options(p: argparse.ArgumentParser) -> None:
-    """The options of ``motion-env eval control`` and ``scripts/evaluate_control.py``."""
-    p.add_argument("--data", required=True, help="HumanML3D-layout dataset (motion-env data build)")
-    p.add_argument("--split", default="test", help="held-out split: test (to report) or val (to choose)")
+def _add_control_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--data", required=True, help=_DATA_HELP)
+    p.add_argument("--split", default="test", help=_SPLIT_HELP)
     p.add_argument("--max-clips", type=int, default=10, help="held-out takes per setting (default 10)")
     p.add_argument("--objective-repeats", type=int, default=4, help="cases per objective (0 skips them)")
     p.add_argument(
@@ -39,84 +56,142 @@ def add_control_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", default=None, help="also write the results to this JSON file")
 
 
-_CAPTIONS_HELP = (
-    "captions: action/style recognised by a classifier of real takes, template vs new wordings (issue #11)"
-)
-
-
-def add_captions_options(p: argparse.ArgumentParser) -> None:
-    """The options of ``motion-env eval captions`` and ``scripts/evaluate_captions.py``."""
-    p.add_argument("--data", required=True, help="HumanML3D-layout dataset (motion-env data build)")
-    p.add_argument("--split", default="test", help="held-out split: test (to report) or val (to choose)")
+def _add_captions_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--data", required=True, help=_DATA_HELP)
+    p.add_argument("--split", default="test", help=_SPLIT_HELP)
     p.add_argument(
         "--seeds", type=int, default=4, help="clips per (action, style) and caption set (default 4)"
     )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--model", default=None, help="generator weights directory (default: the shipped model)")
-    p.add_argument(
-        "--classifier", default=None,
-        help="classifier checkpoint (default: motion_env/weights/classifier.pt; scripts/train_classifier.py)",
-    )  # fmt: skip
+    p.add_argument("--classifier", default=None, help=_CLASSIFIER_HELP)
     add_caption_reader(p)
     p.add_argument("--json", default=None, help="also write the results to this JSON file")
 
 
-def check_captions_options(args: argparse.Namespace) -> None:
-    """Argument checks made before anything heavy loads (CommandError with the flag's name)."""
-    if args.seeds < 1:
-        raise CommandError(f"--seeds must be >= 1, got {args.seeds}")
+def _add_natural_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--data", required=True, help=_DATA_HELP)
+    p.add_argument("--split", default="test", help=_SPLIT_HELP)
+    p.add_argument("--per-action", type=int, default=7, help="takes made again per action (default 7)")
+    p.add_argument("--seed", type=int, default=0, help="choice of takes, real halves, generator seed")
+    p.add_argument(
+        "--stage", choices=("generated", "vqvae"), default="generated",
+        help="generated: the whole generator along the takes' paths; vqvae: the real takes through the "
+        "VQ-VAE alone, on their real root paths (what the tokenizer changes)",
+    )  # fmt: skip
+    p.add_argument(
+        "--weights", "--model", dest="model", default=None,
+        help="generator weights directory (default: the shipped model)",
+    )  # fmt: skip
+    p.add_argument("--classifier", default=None, help=_CLASSIFIER_HELP)
+    add_caption_reader(p)
+    p.add_argument("--json", default=None, help="also write the results to this JSON file")
+
+
+def _check_dataset(args: argparse.Namespace) -> None:
+    """The dataset, split, weights and classifier named exist (CommandError naming the flag)."""
     if not (Path(args.data) / "index.csv").is_file():
         raise CommandError(f"--data {args.data}: no index.csv there (build one with motion-env data build)")
     if not (Path(args.data) / f"{args.split}.txt").is_file():
         raise CommandError(f"--split {args.split}: no {args.split}.txt in {args.data}")
     if args.model is not None and not Path(args.model).is_dir():
-        raise CommandError(f"--model {args.model}: no generator weights directory there")
-    if args.classifier is not None and not Path(args.classifier).is_file():
+        flag = "--weights" if args.eval_command == "natural" else "--model"
+        raise CommandError(f"{flag} {args.model}: no generator weights directory there")
+    if getattr(args, "classifier", None) is not None and not Path(args.classifier).is_file():
         raise CommandError(f"--classifier {args.classifier}: no such file")
 
 
 def add_eval(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("eval", help="evaluations of the generator")
     esub = p.add_subparsers(dest="eval_command", required=True)
-    c = esub.add_parser("control", help=_CONTROL_HELP, description=_CONTROL_HELP)
-    add_control_options(c)
-    add_threads(c)
-    add_overwrite(c)
-    c.set_defaults(run=run_eval_control)
-    k = esub.add_parser("captions", help=_CAPTIONS_HELP, description=_CAPTIONS_HELP)
-    add_captions_options(k)
-    add_threads(k)
-    add_overwrite(k)
-    k.set_defaults(run=run_eval_captions)
+    for name, help_text, add_options, run in (
+        ("control", _CONTROL_HELP, _add_control_options, run_eval_control),
+        ("captions", _CAPTIONS_HELP, _add_captions_options, run_eval_captions),
+        ("natural", _NATURAL_HELP, _add_natural_options, run_eval_natural),
+    ):
+        c = esub.add_parser(name, help=help_text, description=help_text)
+        add_options(c)
+        add_threads(c)
+        add_overwrite(c)
+        c.set_defaults(run=run)
 
 
-def run_eval_control(args: argparse.Namespace) -> int:
+def _echo(args: argparse.Namespace, command: str, flags: tuple[str, ...]) -> str:
+    """The command line that reproduces the results (recorded in the JSON)."""
+    given = (f"--{k.replace('_', '-')} {getattr(args, k)}" for k in flags if getattr(args, k) is not None)
+    return " ".join([f"motion-env eval {command}", *given])
+
+
+def _prepare(args: argparse.Namespace) -> None:
+    """The checks every eval command makes before anything heavy loads, then the threads."""
     if args.json:
         check_new_file(args.json, args.overwrite, "--json")
     set_threads(args.threads)
 
-    from motion_env.evaluation.control import run_control
 
-    run_control(args, "motion-env eval control " + _echo(args))
+def _generator(args: argparse.Namespace) -> Any:
+    from motion_env.generation.generator import MotionGenerator
+
+    return MotionGenerator.from_pretrained(args.model, caption_reader=getattr(args, "caption_reader", None))
+
+
+def _print(line: str) -> None:
+    print(line, flush=True)
+
+
+def run_eval_control(args: argparse.Namespace) -> int:
+    import dataclasses
+
+    _prepare(args)
+    from motion_env.args import write_json
+    from motion_env.evaluation.control import CONTROL_HEAD, ControlSettings, run_control
+
+    settings = ControlSettings(args.data, args.split, args.max_clips, args.objective_repeats, args.seed)
+    gen = _generator(args)
+    changes = {k: v for k, v in (("space", args.space), ("steps", args.steps)) if v is not None}
+    gen.refine_config = dataclasses.replace(gen.refine_config, **changes)
+    print(CONTROL_HEAD, flush=True)
+    result = run_control(gen, settings, log=_print)
+    print()
+    print(result.format())
+    if args.json:
+        flags = ("data", "split", "max_clips", "objective_repeats", "space", "steps", "seed", "model")
+        write_json(args.json, result.to_dict(_echo(args, "control", flags)))
     return 0
 
 
 def run_eval_captions(args: argparse.Namespace) -> int:
-    check_captions_options(args)
+    _check_dataset(args)
+    _prepare(args)
+    from motion_env.args import write_json
+    from motion_env.evaluation.recognition import RecognitionSettings, run_recognition
+
+    settings = RecognitionSettings(args.data, args.split, args.seeds, args.seed, args.classifier)
+    gen = _generator(args)
+    result = run_recognition(gen, settings, log=_print)
+    print()
+    print(result.format())
     if args.json:
-        check_new_file(args.json, args.overwrite, "--json")
-    set_threads(args.threads)
-
-    from motion_env.evaluation.recognition import run_captions
-
-    flags = ("data", "split", "seeds", "seed", "model", "classifier")
-    echo = " ".join(f"--{k} {getattr(args, k)}" for k in flags if getattr(args, k) is not None)
-    run_captions(args, "motion-env eval captions " + echo)
+        command = _echo(args, "captions", ("data", "split", "seeds", "seed", "model", "classifier"))
+        write_json(args.json, result.to_dict(command, caption_reader=args.caption_reader or "default"))
     return 0
 
 
-def _echo(args: argparse.Namespace) -> str:
-    flags = ("data", "split", "max_clips", "objective_repeats", "space", "steps", "seed", "model")
-    return " ".join(
-        f"--{k.replace('_', '-')} {getattr(args, k)}" for k in flags if getattr(args, k) is not None
+def run_eval_natural(args: argparse.Namespace) -> int:
+    _check_dataset(args)
+    _prepare(args)
+    from motion_env.args import write_json
+    from motion_env.evaluation.naturalness import NaturalnessSettings, evaluate_naturalness
+
+    settings = NaturalnessSettings(
+        args.data, args.split, args.per_action, args.seed, args.stage, classifier=args.classifier
     )
+    gen = _generator(args)
+    result = evaluate_naturalness(gen, settings)
+    print(result.format())
+    if args.json:
+        flags = ("data", "split", "per_action", "seed", "stage", "model", "classifier")
+        data = {"command": _echo(args, "natural", flags), **result.to_dict()}
+        data["caption_reader"] = args.caption_reader or "default"
+        write_json(args.json, data)
+    return 0

@@ -115,7 +115,13 @@ _TRAINERS = {
     "caption-adapter": (
         "motion_env.training.caption_adapter",
         "CaptionAdapterTrainConfig",
-        "the caption adapter (text only: other wordings -> what the GPT and controller know)",
+        "the caption adapter of a caption reader (text only: other wordings -> what the GPT and "
+        "controller know)",
+    ),
+    "classifier": (
+        "motion_env.training.classifier",
+        "ClassifierTrainConfig",
+        "the action/style classifier of real takes (the judge of eval captions and eval natural)",
     ),
 }
 
@@ -155,11 +161,11 @@ class TrainParser(CommandParser):
         return super().format_help()
 
 
-_TRAIN_HELP = "train one model of the generator (VQ-VAE, then GPT; controller any time)"
+_TRAIN_HELP = "train one model (the generator's VQ-VAE, then GPT; the others any time)"
 _TRAIN_DESCRIPTION = (
-    "Train one model of the generator. Each model's options are its trainer's settings (motion-env "
-    "train MODEL --help lists them with their defaults). An existing --out checkpoint is resumed "
-    "from."
+    "Train one model of the generator, or the classifier that judges it. Each model's options are "
+    "its trainer's settings (motion-env train MODEL --help lists them with their defaults). An "
+    "existing --out checkpoint is resumed from."
 )
 
 
@@ -203,6 +209,10 @@ def run_train(args: argparse.Namespace) -> int:
         from motion_env.training.controller import train_controller
 
         metrics = train_controller(args.data, args.out, config)
+    elif args.model == "classifier":
+        from motion_env.training.classifier import train_classifier
+
+        metrics = train_classifier(args.data, args.out, config)
     else:
         from motion_env.training.caption_adapter import train_caption_adapter
 

@@ -1,4 +1,4 @@
-"""Joint control and objectives (``python scripts/evaluate_control.py``, ``motion-env eval control``).
+"""Joint control and objectives (``motion-env eval control``; :func:`run_control`).
 
 The OmniControl protocol on our held-out takes (definitions in ``docs/metrics.md``, "Joint
 control"): targets are the real take's own joints — pelvis, left foot, right foot, head, left
@@ -9,12 +9,18 @@ use; there is no route (the targets alone say where to go). Per setting: mean er
 share of targets and of clips missed by more than 50 cm, foot skating against the real takes,
 the largest per-frame joint jump against the real take's, the largest bone-length change, and
 seconds per clip. The objectives run on synthetic cases (:func:`objective_cases`).
+:func:`run_control` runs both on a generator with :class:`ControlSettings` and returns a
+:class:`ControlResult`; the refinement settings are the generator's (``gen.refine_config``).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import os
+import platform
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -23,14 +29,17 @@ import numpy as np
 
 from motion_env.evaluation.captions import WALK_CAPTIONS, WAVE_RIGHT, heldout_caption
 from motion_env.evaluation.metrics import MISS, foot_skating_ratio
-from motion_env.evaluation.routes import read_index
+from motion_env.evaluation.route_following import read_index
 from motion_env.motion.kinematics import bone_lengths
 from motion_env.motion.skeleton import BONE_LENGTHS, JOINT_INDEX
 from motion_env.motion.trajectory import root_path_from_joints
 
 __all__ = [
+    "CONTROL_HEAD",
     "CONTROL_JOINTS",
     "DENSITIES",
+    "ControlResult",
+    "ControlSettings",
     "control_cases",
     "evaluate_control",
     "evaluate_objectives",
@@ -315,7 +324,7 @@ def evaluate_objectives(gen: Any, cases: list[ObjectiveCase], seed: int = 0) -> 
 # Tables
 # ----------------------------------------------------------------------------------------------
 
-_HEAD = (
+CONTROL_HEAD = (
     f"{'setting':<28}{'err cm':>8}{'miss>50':>9}{'clips>50':>9}{'skate':>7}{'real':>6}{'x real':>7}"
     f"{'jump x':>8}{'>1.25':>6}{'jump cm':>8}{'real':>6}{'bone %':>8}{'s/clip':>8}{'max s':>7}"
 )
@@ -333,7 +342,7 @@ def _fmt_row(name: str, r: dict[str, Any]) -> str:
 
 def format_control(results: dict[str, Any]) -> str:
     """Plain-text tables of :func:`evaluate_control` (and :func:`evaluate_objectives` under "objectives")."""
-    lines = [_HEAD]
+    lines = [CONTROL_HEAD]
     if "no targets" in results:
         lines.append(_fmt_row("no targets", results["no targets"]))
     lines += [_fmt_row(name, r) for name, r in results.get("settings", {}).items()]
@@ -364,44 +373,112 @@ def format_control(results: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def run_control(args: Any, command: str) -> dict[str, Any]:
-    """Load the model, run both evaluations with `args` (:func:`add_control_arguments`), print the tables."""
-    import dataclasses
-    import platform
+@dataclass
+class ControlSettings:
+    """What :func:`run_control` evaluates.
 
+    Attributes:
+        data: a dataset built by ``motion-env data build`` (its held-out split).
+        split: the held-out split: "test" to report, "val" to choose settings.
+        max_clips: held-out takes per setting.
+        objective_repeats: cases per objective (0 skips the objectives).
+        seed: the choice of takes, the target frames and the generator's seed.
+    """
+
+    data: str | Path
+    split: str = "test"
+    max_clips: int = 10
+    objective_repeats: int = 4
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        name = type(self).__name__
+        if not str(self.data).strip():
+            raise ValueError(f"{name}.data must name a dataset folder, got {self.data!r}")
+        if not self.split.strip():
+            raise ValueError(f"{name}.split must be a split name, got {self.split!r}")
+        for attr, low in (("max_clips", 1), ("objective_repeats", 0), ("seed", 0)):
+            value = getattr(self, attr)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise ValueError(f"{name}.{attr} must be an integer >= {low}, got {value!r}")
+
+
+@dataclass
+class ControlResult:
+    """What :func:`run_control` measured (the numbers of the module docstring).
+
+    Attributes:
+        no_targets: the takes generated without targets (the generator's own skating and jumps).
+        settings: per setting (``"pelvis / 1 frame"``, ...), its numbers.
+        overall: errors over all targets and the worst of the settings.
+        objectives: per kind of objective, its numbers (None: not run).
+        refine: the generator's refinement settings.
+        split, takes: the split and the names of its takes.
+        machine: CPU, cores, torch threads and version, load average.
+        seconds: wall time.
+    """
+
+    no_targets: dict[str, Any]
+    settings: dict[str, dict[str, Any]]
+    overall: dict[str, Any]
+    objectives: dict[str, Any] | None
+    refine: dict[str, Any]
+    split: str
+    takes: list[str]
+    machine: dict[str, Any]
+    seconds: float
+
+    def to_dict(self, command: str | None = None) -> dict[str, Any]:
+        """The results as JSON-ready data (with the `command` that made them, when given)."""
+        out: dict[str, Any] = {"settings": self.settings, "no targets": self.no_targets}
+        out["overall"] = self.overall
+        if self.objectives is not None:
+            out["objectives"] = self.objectives
+        if command is not None:
+            out["command"] = command
+        out.update(refine=self.refine, split=self.split, takes=self.takes, machine=self.machine)
+        out["seconds"] = self.seconds
+        return out
+
+    def format(self) -> str:
+        """The plain-text tables (:func:`format_control`)."""
+        return format_control(self.to_dict())
+
+
+def run_control(
+    gen: Any, settings: ControlSettings, log: Callable[[str], None] | None = None
+) -> ControlResult:
+    """Joint control on held-out takes, then the objectives, with the generator's refinement.
+
+    Args:
+        gen: a :class:`~motion_env.generation.generator.MotionGenerator` (its ``refine_config``
+            is used as it is).
+        settings: the data, split, takes, objective cases and seed.
+        log: called with each table row (:data:`CONTROL_HEAD` is its header) as it is measured.
+    """
     import torch
 
-    from motion_env.args import write_json
-    from motion_env.generation.generator import MotionGenerator
-
-    torch.set_num_threads(args.threads)
-    gen = MotionGenerator.from_pretrained(args.model)
-    changes = {k: v for k, v in (("space", args.space), ("steps", args.steps)) if v is not None}
-    gen.refine_config = dataclasses.replace(gen.refine_config, **changes)
     t0 = time.perf_counter()
-    takes = control_cases(args.data, args.max_clips, args.split, args.seed)
-    print(_HEAD, flush=True)
-    results = evaluate_control(gen, takes, args.seed, log=lambda line: print(line, flush=True))
-    if args.objective_repeats > 0:
-        results["objectives"] = evaluate_objectives(
-            gen, objective_cases(args.objective_repeats, args.seed), args.seed
-        )
-    results.update(
-        command=command,
+    takes = control_cases(settings.data, settings.max_clips, settings.split, settings.seed)
+    results = evaluate_control(gen, takes, settings.seed, log=log)
+    objectives = None
+    if settings.objective_repeats > 0:
+        cases = objective_cases(settings.objective_repeats, settings.seed)
+        objectives = evaluate_objectives(gen, cases, settings.seed)
+    return ControlResult(
+        no_targets=results["no targets"],
+        settings=results["settings"],
+        overall=results["overall"],
+        objectives=objectives,
         refine=dataclasses.asdict(gen.refine_config),
-        split=args.split,
+        split=settings.split,
         takes=[t.name for t in takes],
         machine={
             "cpu": platform.processor() or platform.machine(),
-            "cores": __import__("os").cpu_count(),
+            "cores": os.cpu_count(),
             "torch_threads": torch.get_num_threads(),
             "torch": torch.__version__,
-            "load_average": list(__import__("os").getloadavg()),
+            "load_average": list(os.getloadavg()),
         },
         seconds=time.perf_counter() - t0,
     )
-    print()
-    print(format_control(results))
-    if args.json:
-        write_json(args.json, results)
-    return results

@@ -5,24 +5,30 @@
 - foot skating: :func:`foot_skating_ratio`;
 - foot contacts of a clip without contact labels: :func:`detect_foot_contacts`;
 - route following over many clips: :func:`route_summary` (root, location and trajectory error);
-- caption steering: :func:`speed_and_cadence`, :func:`wrist_heights`, :func:`heading_change`.
+- caption steering: :func:`speed_and_cadence`, :func:`wrist_heights`, :func:`heading_change`;
+- smoothness: :func:`joint_acceleration`, :func:`joint_jerk`;
+- distributions of clip features: :func:`frechet_distance`, :func:`diversity`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from motion_env.motion.checks import check_joints
 from motion_env.motion.skeleton import FOOT_JOINTS, FPS, JOINT_INDEX
 from motion_env.motion.trajectory import root_path_from_joints
+from motion_env.motion.validation import check_joints
 
 __all__ = [
     "MISS",
     "SKATE_HEIGHT",
     "SKATE_STEP",
     "detect_foot_contacts",
+    "diversity",
     "foot_skating_ratio",
+    "frechet_distance",
     "heading_change",
+    "joint_acceleration",
+    "joint_jerk",
     "route_summary",
     "speed_and_cadence",
     "wrist_heights",
@@ -115,3 +121,55 @@ def heading_change(joints: np.ndarray) -> float:
     a left turn for a body facing +Z with +X on its left)."""
     heading = np.unwrap(root_path_from_joints(np.asarray(joints, np.float64))[:, 2])
     return float(np.rad2deg(heading[-1] - heading[0]))
+
+
+def joint_acceleration(joints: np.ndarray, fps: float = FPS) -> np.ndarray:
+    """|second finite difference| x fps^2 of every joint: (T, 22, 3) -> (T-2, 22) m/s^2."""
+    joints = check_joints(joints)
+    return np.linalg.norm(np.diff(joints, n=2, axis=0), axis=-1) * fps**2
+
+
+def joint_jerk(joints: np.ndarray, fps: float = FPS) -> np.ndarray:
+    """|third finite difference| x fps^3 of every joint: (T, 22, 3) -> (T-3, 22) m/s^3."""
+    joints = check_joints(joints)
+    return np.linalg.norm(np.diff(joints, n=3, axis=0), axis=-1) * fps**3
+
+
+def frechet_distance(a: np.ndarray, b: np.ndarray) -> float:
+    """Fréchet distance between Gaussians fitted to two sets of feature vectors (as FID).
+
+    ``|mu_a - mu_b|^2 + tr(S_a + S_b - 2 (S_a S_b)^(1/2))`` for (N, D) `a` and (M, D) `b`,
+    N, M >= 2. With fewer samples than dimensions the covariances are rank-deficient and the
+    distance carries a bias that shrinks with N: compare distances of sets of similar sizes.
+    """
+    import warnings
+
+    from scipy import linalg
+
+    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    if a.ndim != 2 or b.ndim != 2 or a.shape[1] != b.shape[1] or min(len(a), len(b)) < 2:
+        raise ValueError(f"need two (N >= 2, D) feature sets of one width, got {a.shape} and {b.shape}")
+    mu = a.mean(0) - b.mean(0)
+    sa, sb = np.cov(a, rowvar=False), np.cov(b, rowvar=False)
+    with warnings.catch_warnings():
+        # Fewer samples than dimensions make the product singular, as the docstring says.
+        warnings.simplefilter("ignore", linalg.LinAlgWarning)
+        root = linalg.sqrtm(sa @ sb)
+        if not np.isfinite(root).all():
+            # pytorch-fid's remedy for a square root that fails: a small ridge on both.
+            ridge = np.eye(len(sa)) * 1e-6
+            root = linalg.sqrtm((sa + ridge) @ (sb + ridge))
+    return float(mu @ mu + np.trace(sa) + np.trace(sb) - 2 * np.trace(np.real(root)))
+
+
+def diversity(features: np.ndarray) -> float:
+    """Mean Euclidean distance between the feature vectors of every pair of clips ((N, D), N >= 2).
+
+    The diversity of text-to-motion papers averages random pairs; with a few clips per action
+    every pair is used instead.
+    """
+    x = np.asarray(features, np.float64)
+    if x.ndim != 2 or len(x) < 2:
+        raise ValueError(f"need (N >= 2, D) features, got {x.shape}")
+    d = np.linalg.norm(x[:, None] - x[None], axis=-1)
+    return float(d[np.triu_indices(len(x), 1)].mean())

@@ -1,7 +1,7 @@
 """Caption recognition: does a generated clip show the action and style its caption names?
-(``python scripts/evaluate_captions.py``, ``motion-env eval captions``; issue #11.)
+(``motion-env eval captions``; :func:`run_recognition`.)
 
-For every (action, style) the classifier knows (:mod:`motion_env.evaluation.classifier`), the
+For every (action, style) the classifier knows (:mod:`motion_env.models.classifier`), the
 generator makes clips from two kinds of caption, with no waypoints: the project's own caption
 templates (:func:`motion_env.data.captions.bandai.captions_for_bandai`, the training wording) and
 held-out new wordings (:func:`motion_env.evaluation.captions.heldout_captions`: two sentence
@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import time
 from collections import defaultdict
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -31,16 +33,25 @@ import numpy as np
 
 from motion_env.data.captions.bandai import captions_for_bandai
 from motion_env.evaluation.captions import RUN_CAPTIONS, heldout_captions
-from motion_env.evaluation.classifier import LabelledClip, classify, labelled_clips, load_classifier
 from motion_env.evaluation.metrics import heading_change, speed_and_cadence
+from motion_env.models.classifier import classify, load_classifier
 from motion_env.motion.skeleton import JOINT_INDEX
+from motion_env.training.classifier import LabelledClip, labelled_clips
 
-__all__ = ["CAPTION_SETS", "evaluate_recognition", "format_recognition", "recognition_scores", "run_captions"]
+__all__ = [
+    "CAPTION_SETS",
+    "RecognitionResult",
+    "RecognitionSettings",
+    "evaluate_recognition",
+    "format_recognition",
+    "recognition_scores",
+    "run_recognition",
+]
 
 CAPTION_SETS = ("templates", "other_wordings")
 MIN_FRAMES, MAX_FRAMES = 40, 200
-RUN_SPEED = 2.3  # m/s, the issue's target for run wordings on an untimed route
-TURN_RANGE = (60.0, 120.0)  # degrees the named way, the issue's target for turns without waypoints
+RUN_SPEED = 2.3  # m/s, the target for run wordings on an untimed route
+TURN_RANGE = (60.0, 120.0)  # degrees the named way, the target for turns without waypoints
 # An untimed straight route far enough that a run does not arrive (and slow down) within the clip.
 UNTIMED_ROUTE = np.array([[0.0, 4.0 * k] for k in range(1, 11)], np.float32)
 
@@ -102,23 +113,69 @@ def _specific(clips: dict[tuple[str, str], list[np.ndarray]]) -> dict[str, Any]:
     return out
 
 
+def _caption_clips(
+    gen: Any, cfg: Any, name: str, frames: dict[str, int], seeds: int, seed: int
+) -> tuple[dict[tuple[str, str], list[np.ndarray]], dict[str, list[str]]]:
+    """The clips of one caption set, keyed by (action, style), and the captions used per action."""
+    clips: dict[tuple[str, str], list[np.ndarray]] = {}
+    texts_used: dict[str, list[str]] = {}
+    for action in cfg.actions:
+        texts, keys = [], []
+        for style in cfg.styles:
+            if name == "templates":
+                batch = captions_for_bandai(action, style, n=seeds, seed=seed)[:seeds]
+            else:
+                batch = _cycle(heldout_captions(action, style), seeds)
+            texts += batch
+            keys += [(action, style)] * len(batch)
+        texts_used[action] = sorted(set(texts))
+        motions = gen.generate_batch(texts, None, frames[action], seed)
+        for key, m in zip(keys, motions, strict=True):
+            clips.setdefault(key, []).append(m.joints)
+    return clips, texts_used
+
+
+def _per_label(cfg: Any, pa: np.ndarray, ps: np.ndarray, a_true: list[int], s_true: list[int]) -> dict:
+    """Accuracy per action and per style, and the action each named action is most often called."""
+    a_true_arr, s_true_arr = np.array(a_true), np.array(s_true)
+    calls = pa.argmax(1)
+    return {
+        "action": {a: float((calls[a_true_arr == i] == i).mean()) for i, a in enumerate(cfg.actions)},
+        "style": {s: float((ps.argmax(1)[s_true_arr == i] == i).mean()) for i, s in enumerate(cfg.styles)},
+        "most_often_called": {
+            a: cfg.actions[int(np.bincount(calls[a_true_arr == i], minlength=len(cfg.actions)).argmax())]
+            for i, a in enumerate(cfg.actions)
+        },
+    }
+
+
+def _real_reference(real: list[LabelledClip]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The real takes' turn and wave measures, and their run speeds."""
+    real_by_key: dict[tuple[str, str], list[np.ndarray]] = defaultdict(list)
+    for c in real:
+        real_by_key[(c.action, c.style or "")].append(c.joints)
+    runs = [speed_and_cadence(c.joints)[0] for c in real if c.action == "run" and len(c.joints) > 25]
+    return _specific(real_by_key), (_summary(runs) if runs else {})
+
+
 def evaluate_recognition(
     gen: Any,
     model: Any,
     real: list[LabelledClip],
     seeds: int = 2,
     seed: int = 0,
-    log: Any = print,
+    log: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
     """The table (real takes, template captions, other wordings, chance) and the specific measures.
 
     Args:
         gen: a :class:`~motion_env.generation.generator.MotionGenerator`.
-        model: a trained :class:`~motion_env.evaluation.classifier.MotionClassifier`.
+        model: a trained :class:`~motion_env.models.classifier.MotionClassifier`.
         real: labelled held-out takes (their lengths set the clip length per action; they are
             also scored, as the "real held-out takes" row).
         seeds: clips per caption (template captions: one caption per seed, each different).
         seed: the base seed of the generator.
+        log: called with a line per caption set as it is done (None: silent).
     """
     cfg = model.config
     a_index = {a: i for i, a in enumerate(cfg.actions)}
@@ -136,73 +193,38 @@ def evaluate_recognition(
     table: dict[str, Any] = {
         "real held-out takes": recognition_scores(pa, ps, [a_index[c.action] for c in real], sty)
     }
-    per_action: dict[str, Any] = {}
+    per_label: dict[str, Any] = {}
     specific: dict[str, Any] = {}
     t0 = time.perf_counter()
     for name in CAPTION_SETS:
-        clips: dict[tuple[str, str], list[np.ndarray]] = {}
-        texts_used: dict[str, list[str]] = {}
-        for action in cfg.actions:
-            texts, keys = [], []
-            for style in cfg.styles:
-                if name == "templates":
-                    batch = captions_for_bandai(action, style, n=seeds, seed=seed)[:seeds]
-                else:
-                    batch = _cycle(heldout_captions(action, style), seeds)
-                texts += batch
-                keys += [(action, style)] * len(batch)
-            texts_used[action] = sorted(set(texts))
-            motions = gen.generate_batch(texts, None, frames[action], seed)
-            for key, m in zip(keys, motions, strict=True):
-                clips.setdefault(key, []).append(m.joints)
+        clips, texts_used = _caption_clips(gen, cfg, name, frames, seeds, seed)
         keys = [k for k, js in clips.items() for _ in js]
         pa, ps = classify(model, [j for js in clips.values() for j in js])
-        a_true = [a_index[a] for a, _ in keys]
-        s_true = [s_index[s] for _, s in keys]
+        a_true, s_true = [a_index[a] for a, _ in keys], [s_index[s] for _, s in keys]
         row = (
             "generated, the project's own caption templates"
             if name == "templates"
             else "generated, other wordings"
         )
         table[row] = recognition_scores(pa, ps, a_true, s_true)
-        per_action[name] = {
-            "action": {
-                a: float((pa.argmax(1)[np.array(a_true) == i] == i).mean()) for a, i in a_index.items()
-            },
-            "style": {
-                s: float((ps.argmax(1)[np.array(s_true) == i] == i).mean()) for s, i in s_index.items()
-            },
-            "most_often_called": {
-                a: cfg.actions[
-                    int(np.bincount(pa.argmax(1)[np.array(a_true) == i], minlength=len(a_index)).argmax())
-                ]
-                for a, i in a_index.items()
-            },
-            "captions": texts_used,
-        }
+        per_label[name] = {**_per_label(cfg, pa, ps, a_true, s_true), "captions": texts_used}
         specific[name] = _specific(clips)
-        log(
-            f"{row}: action {table[row]['action']:.2f} style {table[row]['style']:.2f} "
-            f"top-3 {table[row]['pair_top3']:.2f} ({len(keys)} clips, {time.perf_counter() - t0:.0f} s)"
-        )
+        if log is not None:
+            log(
+                f"{row}: action {table[row]['action']:.2f} style {table[row]['style']:.2f} "
+                f"top-3 {table[row]['pair_top3']:.2f} ({len(keys)} clips, {time.perf_counter() - t0:.0f} s)"
+            )
     table["chance"] = {
         "action": 1.0 / len(cfg.actions),
         "style": 1.0 / len(cfg.styles),
         "pair_top3": min(1.0, 3.0 / (len(cfg.actions) * len(cfg.styles))),
     }
-    real_by_key: dict[tuple[str, str], list[np.ndarray]] = defaultdict(list)
-    for c in real:
-        real_by_key[(c.action, c.style or "")].append(c.joints)
-    specific["real held-out takes"] = _specific(real_by_key)
+    specific["real held-out takes"], real_runs = _real_reference(real)
     specific["runs_untimed_route"] = _run_speeds(gen, cfg.styles, seeds, seed, frames.get("run", 120))
-    specific["runs_untimed_route"]["real held-out takes"] = (
-        _summary([speed_and_cadence(c.joints)[0] for c in real if c.action == "run" and len(c.joints) > 25])
-        if any(c.action == "run" and len(c.joints) > 25 for c in real)
-        else {}
-    )
+    specific["runs_untimed_route"]["real held-out takes"] = real_runs
     return {
         "table": table,
-        "per_label": per_action,
+        "per_label": per_label,
         "specific": specific,
         "frames": frames,
         "actions": list(cfg.actions),
@@ -267,30 +289,99 @@ def format_recognition(results: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def run_captions(args: Any, command: str) -> dict[str, Any]:
-    """Load the classifier and the generator, run :func:`evaluate_recognition`, print, write JSON."""
-    import torch
+@dataclass
+class RecognitionSettings:
+    """What :func:`run_recognition` evaluates.
 
-    from motion_env.args import write_json
-    from motion_env.generation.generator import MotionGenerator
+    Attributes:
+        data: a dataset built by ``motion-env data build`` (``index.csv`` and the splits).
+        split: the held-out split: "test" to report, "val" to choose between models.
+        seeds: clips per (action, style) and caption set.
+        seed: the generator's base seed and the choice of template captions.
+        classifier: the classifier checkpoint that judges (None: the shipped one).
+    """
 
-    torch.set_num_threads(args.threads)
-    model, ckpt = load_classifier(args.classifier)
-    real = labelled_clips(args.data, args.split)
-    gen = MotionGenerator.from_pretrained(args.model, caption_reader=args.caption_reader)
+    data: str | Path
+    split: str = "test"
+    seeds: int = 4
+    seed: int = 0
+    classifier: str | Path | None = None
+
+    def __post_init__(self) -> None:
+        name = type(self).__name__
+        if not str(self.data).strip():
+            raise ValueError(f"{name}.data must name a dataset folder, got {self.data!r}")
+        if not self.split.strip():
+            raise ValueError(f"{name}.split must be a split name, got {self.split!r}")
+        for attr, low in (("seeds", 1), ("seed", 0)):
+            value = getattr(self, attr)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise ValueError(f"{name}.{attr} must be an integer >= {low}, got {value!r}")
+
+
+@dataclass
+class RecognitionResult:
+    """What :func:`run_recognition` measured.
+
+    Attributes:
+        table: per row (real held-out takes, templates, other wordings, chance) the scores of
+            :func:`recognition_scores`.
+        per_label: per caption set, accuracy per action and style, the action most often called,
+            the captions used.
+        specific: turn angles, one-hand waves and run speeds (module docstring).
+        frames: clip length per action; actions, styles: the classifier's labels.
+        split: the split of the real takes.
+        classifier: the classifier's path ("shipped" for the default) and its training metrics.
+        seconds: wall time of the evaluation (the loading of the models aside).
+    """
+
+    table: dict[str, Any]
+    per_label: dict[str, Any]
+    specific: dict[str, Any]
+    frames: dict[str, int]
+    actions: list[str]
+    styles: list[str]
+    split: str
+    classifier: dict[str, Any]
+    seconds: float
+
+    def to_dict(self, command: str | None = None, caption_reader: str | None = None) -> dict[str, Any]:
+        """The results as JSON-ready data, with the `command` that made them and the name of the
+        `caption_reader` the generator was loaded with, when given."""
+        out: dict[str, Any] = {
+            "table": self.table, "per_label": self.per_label, "specific": self.specific,
+            "frames": self.frames, "actions": self.actions, "styles": self.styles,
+        }  # fmt: skip
+        if command is not None:
+            out["command"] = command
+        out.update(split=self.split, classifier=self.classifier)
+        if caption_reader is not None:
+            out["caption_reader"] = caption_reader
+        out["seconds"] = self.seconds
+        return out
+
+    def format(self) -> str:
+        """The table as Markdown, then the turn, run and wave measures (:func:`format_recognition`)."""
+        return format_recognition(self.to_dict())
+
+
+def run_recognition(
+    gen: Any, settings: RecognitionSettings, log: Callable[[str], None] | None = None
+) -> RecognitionResult:
+    """Load the classifier and the labelled held-out takes, and run :func:`evaluate_recognition`.
+
+    Args:
+        gen: a :class:`~motion_env.generation.generator.MotionGenerator`.
+        settings: the data, split, clips per caption, seed and classifier.
+        log: called with a line per caption set as it is done (None: silent).
+    """
+    model, ckpt = load_classifier(settings.classifier)
+    real = labelled_clips(settings.data, settings.split)
     t0 = time.perf_counter()
-    results = evaluate_recognition(
-        gen, model, real, args.seeds, args.seed, log=lambda s: print(s, flush=True)
-    )
-    results.update(
-        command=command,
-        split=args.split,
-        classifier={"path": str(args.classifier or "shipped"), "metrics": ckpt.get("metrics")},
-        caption_reader=args.caption_reader or "default",
+    results = evaluate_recognition(gen, model, real, settings.seeds, settings.seed, log=log)
+    return RecognitionResult(
+        **results,
+        split=settings.split,
+        classifier={"path": str(settings.classifier or "shipped"), "metrics": ckpt.get("metrics")},
         seconds=round(time.perf_counter() - t0, 1),
     )
-    print()
-    print(format_recognition(results))
-    if args.json:
-        write_json(Path(args.json), results)
-    return results

@@ -25,7 +25,7 @@ from motion_env.evaluation.captions import (
     WAVE_RIGHT,
 )
 from motion_env.evaluation.metrics import heading_change, speed_and_cadence, wrist_heights
-from motion_env.evaluation.routes import read_index
+from motion_env.evaluation.route_following import read_index
 
 
 def _mean_std(values: list[float]) -> dict[str, float]:

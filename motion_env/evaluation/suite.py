@@ -1,6 +1,6 @@
 """The evaluation suite of a generator (``python scripts/evaluate.py``): routes, skating, steering.
 
-:func:`evaluate_generator` runs :mod:`.routes` on held-out takes and synthetic routes and
+:func:`evaluate_generator` runs :mod:`.route_following` on held-out takes and synthetic routes and
 :mod:`.steering` on new caption wordings, and :func:`format_results` prints the tables. The
 numbers are defined in ``docs/metrics.md``.
 """
@@ -15,7 +15,7 @@ import numpy as np
 
 from motion_env.evaluation.captions import STYLE_CAPTIONS
 from motion_env.evaluation.metrics import foot_skating_ratio
-from motion_env.evaluation.routes import evaluate_routes, heldout_cases, synthetic_cases
+from motion_env.evaluation.route_following import evaluate_routes, heldout_cases, synthetic_cases
 from motion_env.evaluation.steering import caption_steering, real_reference
 
 __all__ = ["evaluate_generator", "format_results"]

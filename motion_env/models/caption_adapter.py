@@ -22,6 +22,10 @@ the style. Its output is a mixture of
 Trained on text alone (``motion-env train caption-adapter``,
 :mod:`motion_env.training.caption_adapter`): template captions and thousands of paraphrases in
 other words (:mod:`motion_env.data.captions.paraphrases`) with their labels and prototypes.
+
+An adapter reads one text encoder (``config.encoder``); the two together are a *caption reader*,
+what ``caption_reader=`` picks (:mod:`motion_env.generation.caption_readers`). The adapter is the
+model and its file; the reader is the adapter plus its encoder.
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from motion_env.motion.checks import check_above, check_at_least
+from motion_env.motion.validation import check_above, check_at_least
 
 __all__ = ["UNLABELLED", "CaptionAdapter", "CaptionAdapterConfig"]
 

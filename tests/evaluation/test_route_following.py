@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from motion_env.evaluation.routes import synthetic_cases, synthetic_path
+from motion_env.evaluation.route_following import synthetic_cases, synthetic_path
 from motion_env.motion.skeleton import FPS
 
 

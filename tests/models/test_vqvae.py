@@ -54,14 +54,21 @@ def test_rejects_bad_shapes() -> None:
         model.decode(torch.tensor([[0, 32]]))
 
 
-@pytest.mark.parametrize("rate", [2, 4])
-def test_encoder_and_decoder_are_causal(rate: int) -> None:
-    model = tiny(rate).eval()
+@pytest.fixture(params=[2, 4], ids=lambda rate: f"rate{rate}")
+def spread(request) -> VQVAE:
+    """A tiny model in eval mode at each rate, its codebook spread out so that every code decodes
+    to something else."""
+    model = tiny(request.param).eval()
     model.quantizer.codebook.normal_()
+    return model
+
+
+def test_encoder_and_decoder_are_causal(spread: VQVAE) -> None:
+    model, rate = spread, spread.config.rate
     x = torch.randn(1, 48, 263)
     later = x.clone()
     later[:, 24:] += 5.0  # change only frames from token 24 / rate on
-    z1, z2 = model._encode_latent(x), model._encode_latent(later)
+    z1, z2 = model.encode_latent(x), model.encode_latent(later)
     assert torch.allclose(z1[:, : 24 // rate], z2[:, : 24 // rate])
     assert not torch.allclose(z1, z2)
     codes = torch.randint(0, 32, (1, 12))
@@ -70,10 +77,8 @@ def test_encoder_and_decoder_are_causal(rate: int) -> None:
     assert torch.allclose(model.decode(codes)[:, : 8 * rate], model.decode(other)[:, : 8 * rate])
 
 
-@pytest.mark.parametrize("rate", [2, 4])
-def test_stream_decode_equals_full_decode(rate: int) -> None:
-    model = tiny(rate).eval()
-    model.quantizer.codebook.normal_()
+def test_stream_decode_equals_full_decode(spread: VQVAE) -> None:
+    model, rate = spread, spread.config.rate
     codes = torch.randint(0, 32, (2, 3 * model.decoder_context_tokens))
     full = model.decode(codes)
     for n in range(1, codes.shape[1] + 1):
@@ -84,10 +89,8 @@ def test_stream_decode_equals_full_decode(rate: int) -> None:
         torch.testing.assert_close(frames, full[:, (n - 1) * rate : n * rate], atol=1e-5, rtol=1e-5)
 
 
-@pytest.mark.parametrize("rate", [2, 4])
-def test_decoder_stream_equals_full_decode_per_row(rate: int) -> None:
-    model = tiny(rate).eval()
-    model.quantizer.codebook.normal_()
+def test_decoder_stream_equals_full_decode_per_row(spread: VQVAE) -> None:
+    model = spread
     codes = torch.randint(0, 32, (3, 2 * model.decoder_context_tokens))
     full = model.decode(codes)
     stream = model.decoder_stream(3)

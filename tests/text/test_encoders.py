@@ -1,4 +1,5 @@
-"""Text encoders: the offline MiniLM default, caching, validation, the optional CLIP encoder."""
+"""Text encoders: the offline MiniLM default, caching, validation, encoders by name (the optional CLIP
+encoder: test_clip.py)."""
 
 from __future__ import annotations
 
@@ -10,12 +11,13 @@ import pytest
 import torch
 
 from motion_env.models.checkpoint import check_text_encoder, text_encoder_record
+from motion_env.text import encoders
 from motion_env.text.encoders import (
-    ClipTextEncoder,
     MiniLMEncoder,
     TextEncoder,
     jitter_embeddings,
     load_text_encoder,
+    register_text_encoder,
 )
 
 
@@ -56,17 +58,18 @@ def test_rejects_empty_and_non_list(minilm: MiniLMEncoder) -> None:
     assert minilm.encode([]).shape == (0, 384)
 
 
-def test_clip_encoder_gives_clear_errors(tmp_path: Path) -> None:
-    if importlib.util.find_spec("open_clip") is None:
-        with pytest.raises(ImportError, match="motion-env\\[clip\\]"):
-            ClipTextEncoder(tmp_path / "missing.bin")
-    else:
-        with pytest.raises(FileNotFoundError, match="never downloads"):
-            ClipTextEncoder(tmp_path / "missing.bin")
-    with pytest.raises(ValueError, match="weights="):
-        load_text_encoder("clip")
-    with pytest.raises(ValueError, match="unknown text encoder"):
+def test_encoders_are_built_by_name(monkeypatch: pytest.MonkeyPatch) -> None:
+    with pytest.raises(ValueError, match="unknown text encoder 'bert'; choose 'minilm', 'mpnet', 'clip'"):
         load_text_encoder("bert")
+    with pytest.raises(ValueError, match="ships its own weights"):
+        load_text_encoder("minilm", weights="somewhere")
+    monkeypatch.setattr(encoders, "TEXT_ENCODERS", dict(encoders.TEXT_ENCODERS))
+    register_text_encoder("fake", lambda weights, device: _Fake(device))
+    assert isinstance(load_text_encoder("fake"), _Fake)
+    assert load_text_encoder("fake+sides").encode(["a person walks"]).shape == (1, 8)
+    for name in ("fake", "fake+sides", ""):
+        with pytest.raises(ValueError, match="is empty, has a '\\+' or is taken"):
+            register_text_encoder(name, lambda weights, device: _Fake(device))
 
 
 class _Fake(TextEncoder):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import importlib.util
+import json
 from collections.abc import Callable
 from pathlib import Path
 
@@ -106,13 +108,65 @@ def test_training_writes_a_resumable_checkpoint(
     cfg = CaptionAdapterTrainConfig(
         steps=6, batch_size=16, paraphrases=6, hidden=16, progress=False, save_every=3
     )
-    metrics = train_caption_adapter(data, out, cfg, encoder=hash_text())
+    metrics = train_caption_adapter(data, out, cfg, encoder=hash_text(), target_encoder=hash_text())
     ckpt = read_checkpoint(out, CHECKPOINT_KIND)
     assert ckpt["step"] == 6 and ckpt["text_encoder"] == {"name": "hash", "dim": 8}
     assert ckpt["config"]["encoder"] == "hash" and list(ckpt["config"]["actions"]) == ["run", "walk"]
+    assert ckpt["settings"]["target_encoder"] == "hash"
     assert 0.0 <= metrics["val_action_acc"] <= 1.0 and metrics["val_dist"] >= 0.0
-    more = CaptionAdapterTrainConfig(steps=9, batch_size=16, paraphrases=6, hidden=16, progress=False)
+    more = CaptionAdapterTrainConfig(
+        steps=9, batch_size=16, paraphrases=6, hidden=16, progress=False, target_encoder="hash"
+    )
     assert train_caption_adapter(data, out, more, encoder=hash_text())["step"] == 9
+
+
+# A random CLIP small enough to make here (1.6 M parameters, nearly all its token table).
+TINY_CLIP = {
+    "embed_dim": 16,
+    "vision_cfg": {"image_size": 32, "layers": 1, "width": 32, "patch_size": 16, "head_width": 16},
+    "text_cfg": {"context_length": 77, "vocab_size": 49408, "width": 32, "heads": 2, "layers": 1},
+}
+
+
+@pytest.fixture
+def tiny_clip(tmp_path: Path) -> Path:
+    """An open_clip folder (open_clip_config.json and a checkpoint) of a random tiny CLIP."""
+    if importlib.util.find_spec("open_clip") is None:
+        pytest.skip("open-clip-torch is not installed (pip install 'motion-env[clip]')")
+    from motion_env.text.clip import import_open_clip
+
+    torch.manual_seed(0)
+    folder = tmp_path / "tiny_clip"
+    folder.mkdir()
+    torch.save(import_open_clip().CLIP(**TINY_CLIP).state_dict(), folder / "open_clip_pytorch_model.bin")
+    (folder / "open_clip_config.json").write_text(json.dumps({"model_cfg": TINY_CLIP}))
+    return folder
+
+
+def test_train_caption_adapter_encoder_clip(
+    tmp_path: Path,
+    tiny_clip: Path,
+    hash_text: Callable[..., TextEncoder],
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """`motion-env train caption-adapter --encoder clip`: an adapter from CLIP's embeddings to the
+    models' encoder (here the stand-in "hash", known to load_text_encoder for the test)."""
+    from motion_env.cli import main
+    from motion_env.text import encoders
+
+    monkeypatch.setitem(encoders.TEXT_ENCODERS, "hash", lambda weights, device: hash_text())
+    monkeypatch.setenv("MOTION_ENV_CACHE", str(tmp_path / "cache"))
+    data, out = _labelled(tmp_path), tmp_path / "caption_adapter.clip.pt"
+    args = ["train", "caption-adapter", "--data", str(data), "--out", str(out), "--encoder", "clip"]
+    args += ["--encoder-weights", str(tiny_clip), "--target-encoder", "hash", "--steps", "4"]
+    args += ["--batch-size", "16", "--paraphrases", "6", "--hidden", "16", "--no-progress", "--threads", "1"]
+    assert main(args) == 0
+    printed = capsys.readouterr().out
+    assert json.loads(printed[printed.index("{") :])["step"] == 4
+    ckpt = read_checkpoint(out, CHECKPOINT_KIND)
+    assert ckpt["config"]["encoder"] == "clip" and ckpt["config"]["in_dim"] == 16
+    assert ckpt["config"]["out_dim"] == 8 and ckpt["text_encoder"] == {"name": "hash", "dim": 8}
 
 
 @pytest.mark.parametrize(("field", "value"), [("paraphrases", 0), ("lr", 0.0), ("text_noise", -1.0)])

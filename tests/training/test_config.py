@@ -11,11 +11,13 @@ from pathlib import Path
 import pytest
 
 import motion_env.training.caption_adapter as adapter_trainer
+import motion_env.training.classifier as classifier_trainer
 import motion_env.training.controller as controller_trainer
 import motion_env.training.gpt as gpt_trainer
 import motion_env.training.vqvae as vqvae_trainer
 from motion_env.cli import main
 from motion_env.training.caption_adapter import CaptionAdapterTrainConfig
+from motion_env.training.classifier import ClassifierTrainConfig
 from motion_env.training.config import TrainConfig
 from motion_env.training.controller import ControllerTrainConfig
 from motion_env.training.gpt import GPTTrainConfig
@@ -26,16 +28,19 @@ CONFIGS = {
     "gpt": GPTTrainConfig,
     "controller": ControllerTrainConfig,
     "caption-adapter": CaptionAdapterTrainConfig,
+    "classifier": ClassifierTrainConfig,
 }
 TRAINERS = {
     "vqvae": (vqvae_trainer, "train_vqvae"),
     "gpt": (gpt_trainer, "train_gpt"),
     "controller": (controller_trainer, "train_controller"),
     "caption-adapter": (adapter_trainer, "train_caption_adapter"),
+    "classifier": (classifier_trainer, "train_classifier"),
 }
 
 # The options `motion-env train MODEL` took before its trainer had a config (--data, --out and
-# --vqvae aside), and for each: the text given, the field it sets, the value that field must get.
+# --vqvae aside; the classifier's: those of the script that trained it before), and for each: the
+# text given, the field it sets, the value that field must get.
 FLAGS_BEFORE = {
     "vqvae": ["steps", "batch-size", "lr", "window", "device", "seed", "max-minutes", "no-resume"],
     "gpt": [
@@ -46,9 +51,12 @@ FLAGS_BEFORE = {
         "no-resume",
     ],
     "caption-adapter": ["steps", "batch-size", "lr", "encoder", "text-noise", "device", "seed", "no-resume"],
+    "classifier": ["epochs", "width", "seed"],
 }  # fmt: skip
 VALUES = {
     "steps": ("7", "steps", 7),
+    "epochs": ("5", "epochs", 5),
+    "width": ("32", "width", 32),
     "batch-size": ("5", "batch_size", 5),
     "lr": ("0.01", "lr", 0.01),
     "window": ("16", "window", 16),
@@ -65,6 +73,7 @@ def test_defaults_are_the_trainers_defaults() -> None:
     assert VQVAETrainConfig().to_dict() == {
         "seed": 0, "device": "cpu", "resume": True, "log_every": 50, "save_every": 250, "eval_every": 0,
         "max_minutes": math.inf, "progress": True, "steps": 3000, "batch_size": 64, "lr": 4e-4, "window": 64,
+        "init": None, "freeze_encoder": False, "vel_weight": 0.0, "acc_weight": 0.0, "jerk_weight": 0.0,
     }  # fmt: skip
     assert GPTTrainConfig().to_dict() == {
         "seed": 0, "device": "cpu", "resume": True, "log_every": 50, "save_every": 100, "eval_every": 0,
@@ -81,7 +90,14 @@ def test_defaults_are_the_trainers_defaults() -> None:
         "seed": 0, "device": "cpu", "resume": True, "log_every": 250, "save_every": 500, "eval_every": 0,
         "max_minutes": math.inf, "progress": True, "steps": 3000, "batch_size": 256, "lr": 1e-3,
         "paraphrases": 120, "prior": 0.5, "text_noise": 0.3, "label_weight": 0.1, "hidden": 512, "layers": 2,
-        "dropout": 0.1, "temperature": 1.0, "encoder": "minilm+sides",
+        "dropout": 0.1, "temperature": 1.0, "encoder": "minilm+sides", "encoder_weights": None,
+        "target_encoder": "minilm+sides",
+    }  # fmt: skip
+    assert ClassifierTrainConfig().to_dict() == {
+        "seed": 0, "device": "cpu", "resume": True, "log_every": 1, "save_every": 1, "eval_every": 1,
+        "max_minutes": math.inf, "progress": True, "epochs": 15, "batch_size": 64, "lr": 2e-3,
+        "weight_decay": 1e-2, "min_takes": 100, "window": 80, "width": 96, "layers": 3, "kernel": 5,
+        "dropout": 0.1,
     }  # fmt: skip
 
 
@@ -164,12 +180,21 @@ def test_every_field_is_an_option(model: str, tmp_path: Path, monkeypatch: pytes
         elif f.default == math.inf:
             argv += [flag, "2.5"]
             expected[f.name] = 2.5
+        elif f.default is None:  # an optional path
+            argv += [flag, "x.pt"]
+            expected[f.name] = "x.pt"
         elif isinstance(f.default, str):
-            value = {"device": "cuda:1", "encoder": "clip", "untimed_by": "distance"}[f.name]
+            value = {
+                "device": "cuda:1",
+                "encoder": "clip",
+                "untimed_by": "distance",
+                "target_encoder": "mpnet",
+            }[f.name]
             argv += [flag, value]
             expected[f.name] = value
         else:
-            value = f.default / 2 if isinstance(f.default, float) else f.default + 1
+            value = (f.default / 2 or 0.5) if isinstance(f.default, float) else f.default + 1
+            value += 1 if f.name == "kernel" else 0  # kernels are odd
             argv += [flag, str(value)]
             expected[f.name] = value
     assert main(argv) == 0
@@ -204,7 +229,8 @@ def test_help_lists_every_option_with_its_default(model: str, capsys: pytest.Cap
     text = capsys.readouterr().out
     for f in fields(CONFIGS[model]):
         assert "--" + f.name.replace("_", "-") in text
-    assert f"(default: {CONFIGS[model]().steps})" in text and "--no-resume" in text
+    length = CONFIGS[model]().epochs if model == "classifier" else CONFIGS[model]().steps
+    assert f"(default: {length})" in text and "--no-resume" in text
 
 
 def test_the_cli_imports_no_trainer_until_train_runs() -> None:

@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from motion_env.data.dataset import load_stats
-from motion_env.models.checkpoint import load_checkpoint, read_checkpoint
+from motion_env.models.checkpoint import load_checkpoint, read_checkpoint, save_checkpoint
 from motion_env.models.normalizer import Normalizer
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
 from motion_env.training.vqvae import VQVAETrainConfig, train_vqvae
@@ -62,3 +62,62 @@ def test_window_must_fit_the_rate(tiny_dataset: Path, tmp_path: Path) -> None:
         train_vqvae(tiny_dataset, tmp_path / "vq.pt", VQVAETrainConfig(steps=1, window=30), TINY_VQ)
     with pytest.raises(ValueError, match="no train clip has at least 512 frames"):
         train_vqvae(tiny_dataset, tmp_path / "vq.pt", VQVAETrainConfig(steps=1, window=512), TINY_VQ)
+
+
+def _packaged_init(path: Path, mean: np.ndarray, std: np.ndarray) -> VQVAE:
+    """A tiny trained-looking VQ-VAE saved as a shipped one is: float16, no optimizer, no step."""
+    torch.manual_seed(0)
+    model = VQVAE(TINY_VQ)
+    model(torch.randn(2, 16, TINY_VQ.feature_dim))  # fills the codebook, as training does
+    entries = Normalizer(mean, std).checkpoint_entries()
+    save_checkpoint(
+        path, kind="vqvae", config=TINY_VQ, model=model, half=True, training={"step": 1}, **entries
+    )
+    return load_checkpoint(path, "vqvae", VQVAEConfig, VQVAE)[0]
+
+
+def test_decoder_fine_tuning_keeps_encoder_codebook_and_stats(tiny_dataset: Path, tmp_path: Path) -> None:
+    mean, std = load_stats(tiny_dataset)
+    # Statistics unlike the dataset's: the init's must be the ones that travel on.
+    init = _packaged_init(tmp_path / "init.pt", mean + 0.5, std * 2.0)
+    out = tmp_path / "fine.pt"
+    smooth = dict(init=str(tmp_path / "init.pt"), freeze_encoder=True, vel_weight=0.5, acc_weight=1.0)
+    config = VQVAETrainConfig(steps=3, lr=1e-2, jerk_weight=0.5, **smooth, **FAST)
+    metrics = train_vqvae(tiny_dataset, out, config)
+    for term in ("loss", "recon", "vel_l1", "acc_l1", "jerk_l1"):
+        assert np.isfinite(metrics[term]) and metrics[term] > 0, term
+    tuned, ckpt = load_checkpoint(out, "vqvae", VQVAEConfig, VQVAE)
+    before, after = init.state_dict(), tuned.state_dict()
+    for name in before:
+        if name.startswith(("encoder.", "quantizer.")):
+            assert torch.equal(before[name], after[name]), name
+    assert any(not torch.equal(before[n], after[n]) for n in before if n.startswith("decoder."))
+    normalizer = Normalizer.from_checkpoint(ckpt, out)
+    np.testing.assert_array_equal(normalizer.mean, (mean + 0.5).astype(np.float32))
+    np.testing.assert_array_equal(normalizer.std, (std * 2.0).astype(np.float32))
+    x = torch.randn(3, 32, TINY_VQ.feature_dim)
+    assert torch.equal(init.encode(x), tuned.encode(x))
+    # Resuming continues the decoder-only run; switching the freeze in between is refused.
+    assert train_vqvae(tiny_dataset, out, VQVAETrainConfig(steps=4, **smooth, **FAST))["step"] == 4
+    with pytest.raises(ValueError, match="freeze_encoder"):
+        train_vqvae(tiny_dataset, out, VQVAETrainConfig(steps=5, init=smooth["init"], **FAST))
+
+
+def test_smoothness_options_are_checked() -> None:
+    with pytest.raises(ValueError, match="acc_weight"):
+        VQVAETrainConfig(acc_weight=-1.0)
+    with pytest.raises(ValueError, match="init"):
+        VQVAETrainConfig(init=" ")
+    with pytest.raises(ValueError, match="freeze_encoder"):
+        VQVAETrainConfig(freeze_encoder=True, resume=False)
+
+
+def test_freezing_needs_a_trained_model(tiny_dataset: Path, tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="set init"):
+        train_vqvae(tiny_dataset, tmp_path / "vq.pt", VQVAETrainConfig(steps=1, freeze_encoder=True, **FAST))
+    init = tmp_path / "init.pt"
+    _packaged_init(init, *load_stats(tiny_dataset))
+    other = VQVAEConfig(width=8, code_dim=8, codebook_size=16, depth=1)
+    config = VQVAETrainConfig(steps=1, init=str(init), **FAST)
+    with pytest.raises(ValueError, match="not the given"):
+        train_vqvae(tiny_dataset, tmp_path / "vq.pt", config, other)
