@@ -39,8 +39,8 @@ from motion_env.data.dataset import split_of
 from motion_env.io.bvh import load_bvh
 from motion_env.motion.skeleton import FPS
 from motion_env.replay import corruptions
-from motion_env.replay.checks import CHECKS, UNITS, report, signals, thresholds_path
 from motion_env.replay.kinematic import measure
+from motion_env.replay.plausibility import CHECKS, UNITS, report, signals, thresholds_path
 
 QUANTILE = 99.0
 MARGIN = 1.25
@@ -129,7 +129,7 @@ def _map(fn, items: list, workers: int, desc: str) -> list:
         return list(tqdm(pool.map(fn, items, chunksize=4), total=len(items), desc=desc, unit="take"))
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parse(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument(
         "--data", type=Path, required=True, help="folder with bandai/ and cmu/ (../shared/data)"
@@ -141,46 +141,45 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if not (args.data / "bandai").is_dir() and not (args.data / "cmu").is_dir():
         parser.error(f"no bandai/ or cmu/ folder under {args.data}")
+    return args
 
-    takes = find_takes(args.data)
-    calib = [t for t in takes if t.split == "train"][:: max(1, args.stride)]
-    held = [t for t in takes if t.split == "test" and t.locomotion]
-    by_source = Counter(t.source for t in held)
-    print(
-        f"{len(takes)} flat-floor takes; calibrating on {len(calib)} train takes, testing on {len(held)} "
-        f"held-out walk/run/turn takes ({by_source['bandai']} Bandai, {by_source['cmu']} CMU)"
-    )
 
-    results = _map(_values, [str(t.path) for t in calib], args.workers, "calibration")
-    failed = [(t.name, r) for t, r in zip(calib, results) if isinstance(r, str)]
-    values = {c: np.array([r[c] for r in results if not isinstance(r, str)]) for c in CHECKS}
+def _thresholds(results: list[dict[str, float] | str]) -> tuple[dict, dict, float]:
+    """Thresholds from the calibration takes' values (the failed takes' errors left out), the
+    values' percentiles per check, and the share of the takes that pass every check; printed."""
+    ok_values = [r for r in results if not isinstance(r, str)]
+    values = {c: np.array([r[c] for r in ok_values]) for c in CHECKS}
     thresholds, stats = {}, {}
     for c in CHECKS:
         v = values[c]
         thresholds[c] = float(max(np.percentile(v, QUANTILE) * MARGIN, MINIMUM[c]))
         stats[c] = {f"p{q}": float(np.percentile(v, q)) for q in (50, 90, 99)} | {"max": float(v.max())}
 
-    print(f"\nthresholds ({QUANTILE:g}th percentile of {len(values[CHECKS[0]])} takes x {MARGIN:g}, "
+    print(f"\nthresholds ({QUANTILE:g}th percentile of {len(ok_values)} takes x {MARGIN:g}, "
           f"at least the minimum):")  # fmt: skip
     print(f"  {'check':<17}{'threshold':>10}  {'p50':>8}{'p90':>8}{'p99':>8}{'max':>8}  unit")
     for c in CHECKS:
         s = stats[c]
         row = "".join(f"{s[q]:8.3f}" for q in ("p50", "p90", "p99", "max"))
         print(f"  {c:<17}{thresholds[c]:10.3f}  {row}  {UNITS[c]}")
-    ok_values = [r for r in results if not isinstance(r, str)]
     calib_pass = sum(all(r[c] <= thresholds[c] for c in CHECKS) for r in ok_values) / max(len(ok_values), 1)
     print(f"  calibration takes that pass every check: {100 * calib_pass:.1f} %")
-    if failed:
-        print(f"  ({len(failed)} takes could not be loaded: {failed[:3]} ...)")
-    if args.values:
-        with args.values.open("w", newline="") as f:
-            writer = csv.writer(f)
-            writer.writerow(["name", "source", "action", *CHECKS])
-            for t, r in zip(calib, results):
-                if not isinstance(r, str):
-                    writer.writerow([t.name, t.source, t.action, *(f"{r[c]:.6g}" for c in CHECKS)])
+    return thresholds, stats, calib_pass
 
-    held_results = _map(_held_out, [(str(t.path), thresholds) for t in held], args.workers, "held-out")
+
+def _write_values(path: Path, calib: list[Take], results: list[dict[str, float] | str]) -> None:
+    """Every calibration take's values as a .csv (one row a take)."""
+    with path.open("w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["name", "source", "action", *CHECKS])
+        for t, r in zip(calib, results):
+            if not isinstance(r, str):
+                writer.writerow([t.name, t.source, t.action, *(f"{r[c]:.6g}" for c in CHECKS)])
+
+
+def _held_out_test(held: list[Take], held_results: list[dict | str]) -> dict:
+    """The held-out test's numbers: how many real takes are judged plausible, which checks fail
+    them, and how each corruption is caught; printed."""
     ok = [(t, r) for t, r in zip(held, held_results) if not isinstance(r, str)]
     plausible = [t for t, r in ok if not r["real"]]
     rate = len(plausible) / max(len(ok), 1)
@@ -201,7 +200,35 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  corruption {k:<13} caught {caught}/{len(tried)}, by {'/'.join(sorted(expected))}: "
               f"{right}/{len(tried)}" + (f"  missed: {missed[:5]}" if missed else ""))  # fmt: skip
         print(f"    checks failing: {', '.join(f'{c} {n}' for c, n in by_check.most_common())}")
+    return {
+        "takes": len(ok),
+        "plausible": len(plausible),
+        "pass_rate": rate,
+        "failed_checks": dict(fails),
+        "corruptions": detection,
+    }
 
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parse(argv)
+    takes = find_takes(args.data)
+    calib = [t for t in takes if t.split == "train"][:: max(1, args.stride)]
+    held = [t for t in takes if t.split == "test" and t.locomotion]
+    by_source = Counter(t.source for t in held)
+    print(
+        f"{len(takes)} flat-floor takes; calibrating on {len(calib)} train takes, testing on {len(held)} "
+        f"held-out walk/run/turn takes ({by_source['bandai']} Bandai, {by_source['cmu']} CMU)"
+    )
+
+    results = _map(_values, [str(t.path) for t in calib], args.workers, "calibration")
+    thresholds, stats, calib_pass = _thresholds(results)
+    failed = [(t.name, r) for t, r in zip(calib, results) if isinstance(r, str)]
+    if failed:
+        print(f"  ({len(failed)} takes could not be loaded: {failed[:3]} ...)")
+    if args.values:
+        _write_values(args.values, calib, results)
+
+    held_results = _map(_held_out, [(str(t.path), thresholds) for t in held], args.workers, "held-out")
     out = {
         "thresholds": thresholds,
         "units": UNITS,
@@ -211,7 +238,7 @@ def main(argv: list[str] | None = None) -> int:
             "quantile": QUANTILE,
             "margin": MARGIN,
             "minimum": MINIMUM,
-            "calibration_takes": len(values[CHECKS[0]]),
+            "calibration_takes": len(results) - len(failed),
             "calibration_split": (
                 "train (motion_env.data.dataset.split_of), flat-floor Bandai Namco and CMU takes"
             ),
@@ -219,13 +246,7 @@ def main(argv: list[str] | None = None) -> int:
         },
         "calibration_values": stats,
         "calibration_pass_rate": calib_pass,
-        "held_out": {
-            "takes": len(ok),
-            "plausible": len(plausible),
-            "pass_rate": rate,
-            "failed_checks": dict(fails),
-            "corruptions": detection,
-        },
+        "held_out": _held_out_test(held, held_results),
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(out, indent=2) + "\n")

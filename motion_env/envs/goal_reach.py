@@ -21,6 +21,28 @@ _GOAL_DISTANCE = (1.5, 4.0)  # random goals lie this far (m) from the start
 _OBSERVATION_PARTS = ("root", "velocity", "pose")
 
 
+def check_goal(goal: Any) -> np.ndarray:
+    """A goal (x, z) as a one-waypoint untimed route (1, 3) (ValueError otherwise)."""
+    arr = np.array(goal, dtype=np.float64).reshape(-1)
+    if arr.shape != (2,) or not np.isfinite(arr).all():
+        raise ValueError(f"options['goal'] must be a finite (x, z) pair, got {goal!r}")
+    return np.array([[arr[0], arr[1], np.nan]], np.float32)
+
+
+def sample_goal(
+    rng: np.random.Generator, start: np.ndarray, config: EnvConfig, obstacles: Sequence[Obstacle]
+) -> np.ndarray:
+    """A random goal (1, 3) 1.5-4 m from `start`, clear of obstacles and inside the arena."""
+    limit = config.arena_size - 0.5
+    for _ in range(100):
+        angle = rng.uniform(-np.pi, np.pi)
+        point = start[:2] + rng.uniform(*_GOAL_DISTANCE) * np.array([np.sin(angle), np.cos(angle)])
+        if (np.abs(point) <= limit).all() and obstacle_distance(point, obstacles) > 0.6:
+            break
+    point = np.clip(point, -limit, limit)
+    return np.array([[point[0], point[1], np.nan]], np.float32)
+
+
 class GoalReachEnv(WaypointsEnv):
     """Walk a generated human to a goal on the floor; the GoalEnv form, ready for HER.
 
@@ -29,26 +51,29 @@ class GoalReachEnv(WaypointsEnv):
     route of one waypoint, the goal. The observation follows the ``GoalEnv`` convention (as
     gymnasium-robotics' Fetch tasks): ``observation``, ``achieved_goal`` and ``desired_goal``, and
     :meth:`compute_reward` works on batches of goals, so a replay buffer can relabel goals in
-    hindsight (stable-baselines3's ``HerReplayBuffer``).
+    hindsight (stable-baselines3's ``HerReplayBuffer``). :attr:`goal` is the goal's world x, z.
 
     ## Action Space
-    As Waypoints-v0: by default ``Box(-1, 1, (3,))``, a point up to ``reach`` metres around the
-    character in its heading frame, and a "follow" switch that walks straight to the goal
-    (``follow_action=False`` leaves only the point; ``action_mode="absolute"`` or ``"relative"``:
-    world or heading-frame metres). NaN/inf raise ``ValueError`` (or ``invalid_action="hold"``);
-    finite values outside the Box are clipped.
+    As Waypoints-v0: by default ``Box(-1, 1, (3,), float32)``, a point up to ``reach`` metres around
+    the character in its heading frame, and a "follow" switch that walks straight to the goal
+    (``follow_action=False`` leaves only the point, ``Box(-1, 1, (2,))``; ``action_mode="absolute"``
+    or ``"relative"``: world or heading-frame metres). NaN/inf raise ``ValueError`` (or
+    ``invalid_action="hold"``); finite values outside the Box are clipped.
 
     ## Observation Space
     ``Dict`` of float32 Boxes:
 
-    - ``"observation"`` (73,): Waypoints-v0's ``root`` (4), ``velocity`` (3) and ``pose`` (66), concatenated;
-    - ``"achieved_goal"`` (2,): pelvis world x, z;
-    - ``"desired_goal"`` (2,): goal world x, z.
+    | key | shape | meaning |
+    |---|---|---|
+    | ``"observation"`` | (73,) | Waypoints-v0's ``root`` (4), ``velocity`` (3) and ``pose`` (66) |
+    | ``"achieved_goal"`` | (2,) | pelvis world x, z |
+    | ``"desired_goal"`` | (2,) | goal world x, z |
 
     ## Rewards
     ``compute_reward(achieved_goal, desired_goal, info)``: ``reward_type="sparse"`` gives -1 per step
     until the pelvis is within ``arrive_radius`` of the goal, then 0; ``"dense"`` gives minus the
-    distance in metres. ``info["reward_goal"]`` holds it.
+    distance in metres. ``info["reward_goal"]`` holds it. Goals of shape (..., 2) give rewards of
+    shape (...,), float32 (a float for single (2,) goals).
 
     ## Starting State
     ``options["start"]`` (x, z, heading) or the origin facing +Z (``random_start=True``: random);
@@ -57,11 +82,32 @@ class GoalReachEnv(WaypointsEnv):
     ``text_pool``.
 
     ## Episode End
-    Terminated when the pelvis is within ``arrive_radius`` of the goal (``terminate_on_arrival``);
-    truncated by the registration's ``TimeLimit`` (100 steps of four frames: 20 s).
+    ### Termination
+    When the pelvis is within ``arrive_radius`` of the goal (``terminate_on_arrival``).
+
+    ### Truncation
+    By the registration's ``TimeLimit``: 100 steps of four frames (20 s).
 
     ## Arguments
-    Those of Waypoints-v0, plus ``reward_type`` ("sparse" or "dense").
+    Those of Waypoints-v0 (its table), plus:
+
+    | Parameter | Type | Default | Description |
+    |---|---|---|---|
+    | ``reward_type`` | str | ``"sparse"`` | ``"sparse"`` or ``"dense"`` (Rewards) |
+
+    ``gym.make("motion_env/GoalReach-v0", reward_type="dense", ...)``;
+    ``gym.make_vec("motion_env/GoalReach-v0", num_envs=N)`` gives :class:`GoalReachVectorEnv`.
+
+    ## ``info`` keys
+    Those of Waypoints-v0 (its table; the route is the goal alone: ``route_length`` 1,
+    ``route_target`` the goal), with one reward term instead of its four:
+
+    | key | shape | meaning |
+    |---|---|---|
+    | ``reward_goal`` | float | the step's reward, as :meth:`compute_reward` gives it (``step`` only) |
+
+    ## Version History
+    * v0: Initial version.
     """
 
     reset_options: tuple[str, ...] = ("text", "goal", "start")
@@ -110,6 +156,9 @@ class GoalReachVectorEnv(WaypointsVectorEnv):
     """
 
     reset_options: tuple[str, ...] = ("text", "goal", "start")
+    _route_option = "goal"
+    _check_route = staticmethod(check_goal)
+    _draw_route = staticmethod(sample_goal)
 
     def __init__(self, *args: Any, reward_type: str = "sparse", **kwargs: Any) -> None:
         self.reward_type = check_reward_type(reward_type)
@@ -129,15 +178,6 @@ class GoalReachVectorEnv(WaypointsVectorEnv):
 
     def _reward_terms(self) -> dict[str, np.ndarray]:
         return goal_terms(self._batch, self.reward_type)
-
-    def _check_route_options(self, options: dict[str, Any]) -> dict[str, Any]:
-        if options.get("goal") is not None:
-            options["goal"] = check_goal(options["goal"])
-        return options
-
-    def _route(self, start: np.ndarray) -> np.ndarray:
-        goal = self._options.get("goal")
-        return sample_goal(self.np_random, start, self.config, self.obstacles) if goal is None else goal
 
 
 # ----------------------------------------------------------------------------------------------
@@ -190,25 +230,3 @@ def check_reward_type(reward_type: str) -> str:
     if reward_type not in REWARD_TYPES:
         raise ValueError(f"reward_type must be one of {REWARD_TYPES}, got {reward_type!r}")
     return reward_type
-
-
-def check_goal(goal: Any) -> np.ndarray:
-    """A goal (x, z) as a one-waypoint untimed route (1, 3) (ValueError otherwise)."""
-    arr = np.array(goal, dtype=np.float64).reshape(-1)
-    if arr.shape != (2,) or not np.isfinite(arr).all():
-        raise ValueError(f"options['goal'] must be a finite (x, z) pair, got {goal!r}")
-    return np.array([[arr[0], arr[1], np.nan]], np.float32)
-
-
-def sample_goal(
-    rng: np.random.Generator, start: np.ndarray, config: EnvConfig, obstacles: Sequence[Obstacle]
-) -> np.ndarray:
-    """A random goal (1, 3) 1.5-4 m from `start`, clear of obstacles and inside the arena."""
-    limit = config.arena_size - 0.5
-    for _ in range(100):
-        angle = rng.uniform(-np.pi, np.pi)
-        point = start[:2] + rng.uniform(*_GOAL_DISTANCE) * np.array([np.sin(angle), np.cos(angle)])
-        if (np.abs(point) <= limit).all() and obstacle_distance(point, obstacles) > 0.6:
-            break
-    point = np.clip(point, -limit, limit)
-    return np.array([[point[0], point[1], np.nan]], np.float32)

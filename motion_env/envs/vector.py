@@ -63,6 +63,10 @@ class WaypointsVectorEnv(VectorEnv):
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": [], "render_fps": FPS}
     reset_options: tuple[str, ...] = ("text", "waypoints", "start")
+    # The reset option that gives the route, its check, and what draws a route when it is not given.
+    _route_option: str = "waypoints"
+    _check_route = staticmethod(validate_waypoints)
+    _draw_route = staticmethod(sample_route)
 
     def __init__(
         self,
@@ -254,13 +258,15 @@ class WaypointsVectorEnv(VectorEnv):
         return text, self._route(start), start
 
     def _check_route_options(self, options: dict[str, Any]) -> dict[str, Any]:
-        if options.get("waypoints") is not None:
-            options["waypoints"] = validate_waypoints(options["waypoints"])
+        if options.get(self._route_option) is not None:
+            options[self._route_option] = self._check_route(options[self._route_option])
         return options
 
     def _route(self, start: np.ndarray) -> np.ndarray:
-        route = self._options.get("waypoints")
-        return sample_route(self.np_random, start, self.config, self.obstacles) if route is None else route
+        route = self._options.get(self._route_option)
+        if route is None:
+            route = self._draw_route(self.np_random, start, self.config, self.obstacles)
+        return route
 
     def _infos(
         self, terms: dict[str, np.ndarray], clipped: np.ndarray, invalid: np.ndarray

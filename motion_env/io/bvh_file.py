@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import gzip
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -130,12 +131,7 @@ def _parse_hierarchy(path: Path, tokens: list[str]) -> tuple:
         elif key == "OFFSET":
             if not stack:
                 raise fail("OFFSET outside a block")
-            try:
-                off = np.array([float(t) for t in tokens[i + 1 : i + 4]])
-            except ValueError as exc:
-                raise fail(f"bad OFFSET values {tokens[i + 1 : i + 4]}") from exc
-            if off.shape != (3,) or not np.isfinite(off).all():
-                raise fail(f"bad OFFSET values {tokens[i + 1 : i + 4]}")
+            off = _offset(tokens[i + 1 : i + 4], fail)
             kind, idx = stack[-1]
             if kind == "joint":
                 offsets[idx] = off
@@ -145,16 +141,9 @@ def _parse_hierarchy(path: Path, tokens: list[str]) -> tuple:
         elif key == "CHANNELS":
             if not stack or stack[-1][0] != "joint":
                 raise fail("CHANNELS outside a joint block")
-            try:
-                count = int(tokens[i + 1])
-            except (ValueError, IndexError) as exc:
-                raise fail(f"bad channel count {tokens[i + 1 : i + 2]}") from exc
-            chans = tuple(tokens[i + 2 : i + 2 + count])
-            bad = [c for c in chans if not _CHANNEL.match(c)]
-            if len(chans) != count or bad:
-                raise fail(f"joint {names[stack[-1][1]]!r} has bad channels {list(chans)}")
+            chans = _channels(tokens, i + 1, names[stack[-1][1]], fail)
             channels[stack[-1][1]] = chans
-            i += 2 + count
+            i += 2 + len(chans)
         else:
             raise fail(f"unexpected token {tok!r} (token {i})")
     if stack:
@@ -162,6 +151,30 @@ def _parse_hierarchy(path: Path, tokens: list[str]) -> tuple:
     if not names:
         raise fail("no joints")
     return names, parents, offsets, channels, end_sites
+
+
+def _offset(values: list[str], fail: Callable[[str], ValueError]) -> np.ndarray:
+    """(3,) the `values` of an OFFSET line as numbers."""
+    try:
+        off = np.array([float(t) for t in values])
+    except ValueError as exc:
+        raise fail(f"bad OFFSET values {values}") from exc
+    if off.shape != (3,) or not np.isfinite(off).all():
+        raise fail(f"bad OFFSET values {values}")
+    return off
+
+
+def _channels(tokens: list[str], i: int, joint: str, fail: Callable[[str], ValueError]) -> tuple[str, ...]:
+    """The channel names of a CHANNELS line whose count is token `i`."""
+    try:
+        count = int(tokens[i])
+    except (ValueError, IndexError) as exc:
+        raise fail(f"bad channel count {tokens[i : i + 1]}") from exc
+    chans = tuple(tokens[i + 1 : i + 1 + count])
+    bad = [c for c in chans if not _CHANNEL.match(c)]
+    if len(chans) != count or bad:
+        raise fail(f"joint {joint!r} has bad channels {list(chans)}")
+    return chans
 
 
 def read_bvh(path: str | Path) -> BvhFile:

@@ -36,7 +36,7 @@ from torch import nn
 
 from motion_env.models.path_features import D_PATH
 from motion_env.models.sampling import SamplingConfig, sample_tokens
-from motion_env.motion.validation import check_positive_ints
+from motion_env.motion.validation import check_interval, check_positive_ints
 
 
 @dataclass
@@ -72,8 +72,7 @@ class GPTConfig:
             )
         if self.n_embd % self.n_head:
             raise ValueError(f"GPTConfig.n_embd ({self.n_embd}) must be divisible by n_head ({self.n_head})")
-        if not 0.0 <= self.dropout < 1.0:
-            raise ValueError(f"GPTConfig.dropout must be in [0, 1), got {self.dropout!r}")
+        check_interval(self, "[0, 1)", "dropout")
 
     @property
     def start_token(self) -> int:

@@ -26,7 +26,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from motion_env.motion.skeleton import FEATURE_DIM, NUM_JOINTS, RIC
-from motion_env.motion.validation import check_at_least, check_positive_ints
+from motion_env.motion.validation import check_at_least, check_interval, check_positive_ints
 
 
 @dataclass
@@ -63,8 +63,7 @@ class VQVAEConfig:
         )
         if self.rate not in (2, 4):
             raise ValueError(f"VQVAEConfig.rate must be 2 or 4 (frames per token), got {self.rate!r}")
-        if not 0.0 < self.ema_decay < 1.0:
-            raise ValueError(f"VQVAEConfig.ema_decay must be in (0, 1), got {self.ema_decay!r}")
+        check_interval(self, "(0, 1)", "ema_decay")
         check_at_least(self, 0, "commit_weight", "velocity_weight")
 
     @property

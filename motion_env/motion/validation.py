@@ -83,9 +83,18 @@ def check_above(config: Any, low: float, *names: str) -> None:
             raise ValueError(f"{type(config).__name__}.{name} must be > {low}, got {value!r}")
 
 
-def check_fraction(config: Any, *names: str) -> None:
-    """ValueError unless each named field of `config` is in [0, 1]."""
+def check_interval(config: Any, interval: str, *names: str) -> None:
+    """ValueError unless each named field of `config` lies in `interval`, written as in maths:
+    ``"(0, 1]"`` leaves 0 out and takes 1 in, ``"[0, 1)"`` the other way round."""
+    low, high = (float(bound) for bound in interval[1:-1].split(","))
     for name in names:
         value = getattr(config, name)
-        if not 0 <= value <= 1:
-            raise ValueError(f"{type(config).__name__}.{name} must be in [0, 1], got {value!r}")
+        above = value > low if interval[0] == "(" else value >= low
+        below = value < high if interval[-1] == ")" else value <= high
+        if not (above and below):
+            raise ValueError(f"{type(config).__name__}.{name} must be in {interval}, got {value!r}")
+
+
+def check_fraction(config: Any, *names: str) -> None:
+    """ValueError unless each named field of `config` is in [0, 1]."""
+    check_interval(config, "[0, 1]", *names)

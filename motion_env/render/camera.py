@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from motion_env.motion.validation import check_above
+from motion_env.motion.validation import check_above, check_interval
 
 
 @dataclass(frozen=True)
@@ -40,8 +40,7 @@ class Camera:
 
     def __post_init__(self) -> None:
         check_above(self, 0, "distance", "focal")
-        if not -89.0 < self.elevation_deg < 89.0:
-            raise ValueError(f"Camera elevation_deg must be in (-89, 89), got {self.elevation_deg}")
+        check_interval(self, "(-89, 89)", "elevation_deg")
 
     def basis(self) -> np.ndarray:
         """(3, 3) rows: the camera's right, up and forward unit vectors in world coordinates."""

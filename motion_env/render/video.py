@@ -171,12 +171,59 @@ def render_video(
     obs = as_obstacles(obstacles)
     title = motion.text if title is None else title
     root_xz = joints[:, 0, [0, 2]]
-    highlighted = np.zeros(motion.num_frames + 1, dtype=bool)
-    for f in highlight_frames or ():
-        if not 0 <= int(f) < motion.num_frames:
-            raise ValueError(f"highlight frame {f} is outside the motion's {motion.num_frames} frames")
-        highlighted[int(f)] = True
+    indices = frame_indices(motion.num_frames, motion.fps, fps)
+    flagged = _flagged(highlight_frames, indices, motion.num_frames)
+    cam, centers, inset, bounds = _view(camera, joints, wps, obs, motion.fps, width / height)
+    renderer = SkeletonRenderer(width, height, cam)
+    # What every frame shows alike; the loop adds the pose, the view's centre, the trail so far,
+    # the frame number and whether it is highlighted.
+    scene = dict(
+        path=root_xz, waypoints=wps, obstacles=obs, fps=motion.fps, title=title, flag=highlight_label,
+        inset=inset, inset_bounds=bounds,
+    )  # fmt: skip
+    with VideoWriter(path, fps) as writer:
+        for src, flag in zip(indices, flagged):
+            frame = renderer.draw(
+                joints[src],
+                center=centers[src],
+                trail=root_xz[: src + 1],
+                frame=int(src),
+                label=f"frame {src} (0-{motion.num_frames - 1})   {src / motion.fps:5.2f} s",
+                highlight=flag,
+                **scene,
+            )
+            writer.append(frame)
+    return path
 
+
+def _flagged(highlight_frames: Iterable[int] | None, indices: np.ndarray, num_frames: int) -> list[bool]:
+    """Whether each output frame, showing source frame ``indices[i]``, is drawn in red
+    (ValueError for a highlight frame outside the motion's `num_frames`)."""
+    highlighted = np.zeros(num_frames + 1, dtype=bool)
+    for f in highlight_frames or ():
+        if not 0 <= int(f) < num_frames:
+            raise ValueError(f"highlight frame {f} is outside the motion's {num_frames} frames")
+        highlighted[int(f)] = True
+    # An output frame stands for every source frame until the next one: flag it if any is.
+    stops = [*indices[1:], num_frames]
+    return [bool(highlighted[src : max(stop, src + 1)].any()) for src, stop in zip(indices, stops)]
+
+
+def _view(
+    camera: str,
+    joints: np.ndarray,
+    wps: np.ndarray | None,
+    obs: np.ndarray | None,
+    fps: float,
+    aspect: float,
+) -> tuple[Camera, np.ndarray, bool, np.ndarray]:
+    """Where the video looks: ``(camera, centres (T, 2), inset, bounds)``.
+
+    "fixed": the one camera that frames the whole body motion and the scene; "follow": the
+    default camera on the smoothed pelvis, with a top-down map (`inset`) when the scene is wider
+    than the view. `bounds` is the scene's floor extent (x min, x max, z min, z max) for that map.
+    """
+    root_xz = joints[:, 0, [0, 2]]
     scene = [root_xz]
     if wps is not None:
         scene.append(wps[:, :2])
@@ -189,36 +236,8 @@ def render_video(
     if camera == "fixed":
         body = joints.reshape(-1, 3)
         floor = np.stack([scene_xz[:, 0], np.zeros(len(scene_xz)), scene_xz[:, 1]], -1)
-        cam, fixed_center = framing_camera(np.concatenate([body, floor]), Camera(), width / height)
-        centers = np.repeat(fixed_center[None], motion.num_frames, 0)
-        inset = False
-    else:
-        cam, centers = Camera(), follow_centers(root_xz, motion.fps)
-        # The map is only worth its corner when the route does not fit in the follow view.
-        inset = bool((bounds[1::2] - bounds[::2]).max() > _MAP_EXTENT)
-    renderer = SkeletonRenderer(width, height, cam)
-
-    indices = frame_indices(motion.num_frames, motion.fps, fps)
-    with VideoWriter(path, fps) as writer:
-        for i, src in enumerate(indices):
-            # An output frame stands for every source frame until the next one: flag it if any is.
-            stop = indices[i + 1] if i + 1 < len(indices) else motion.num_frames
-            flagged = bool(highlighted[src : max(stop, src + 1)].any())
-            frame = renderer.draw(
-                joints[src],
-                center=centers[src],
-                trail=root_xz[: src + 1],
-                path=root_xz,
-                waypoints=wps,
-                obstacles=obs,
-                frame=int(src),
-                fps=motion.fps,
-                title=title,
-                label=f"frame {src} (0-{motion.num_frames - 1})   {src / motion.fps:5.2f} s",
-                highlight=flagged,
-                flag=highlight_label,
-                inset=inset,
-                inset_bounds=bounds,
-            )
-            writer.append(frame)
-    return path
+        cam, fixed_center = framing_camera(np.concatenate([body, floor]), Camera(), aspect)
+        return cam, np.repeat(fixed_center[None], len(joints), 0), False, bounds
+    # The map is only worth its corner when the route does not fit in the follow view.
+    inset = bool((bounds[1::2] - bounds[::2]).max() > _MAP_EXTENT)
+    return Camera(), follow_centers(root_xz, fps), inset, bounds

@@ -76,6 +76,50 @@ def verdict(checks: dict[str, dict], num_frames: int, need: int, fps: float) -> 
     }
 
 
+def judge_checks(
+    names: tuple[str, ...],
+    signals: dict[str, np.ndarray],
+    thresholds: dict[str, float],
+    units: dict[str, str],
+    fps: float,
+    nothing_found: dict[str, str],
+    findings: Callable[[str, int, float, float], tuple[str, str]],
+) -> dict[str, dict]:
+    """The ``checks`` of a report: :func:`check_entry` of each named signal, in the order of `names`.
+
+    A check whose signal is 0 on every frame says ``nothing_found[name]`` where there is one;
+    otherwise ``findings(name, worst, value, threshold)`` words what it found at its worst frame
+    (``(what, allowed)``, made a :func:`sentence`).
+    """
+
+    def message(name: str, ranges: list) -> str:
+        worst = int(np.argmax(signals[name]))
+        value = float(signals[name][worst])
+        if value == 0.0 and name in nothing_found:
+            return nothing_found[name]
+        what, allowed = findings(name, worst, value, thresholds[name])
+        return sentence(what, allowed, worst, ranges, fps)
+
+    return {
+        name: check_entry(
+            signals[name], thresholds[name], units[name], lambda ranges, name=name: message(name, ranges)
+        )
+        for name in names
+    }
+
+
+def report_head(checks: dict[str, dict], num_frames: int, fps: float, need: int, mass: float) -> dict:
+    """The first keys of a report: the :func:`verdict`'s, then ``frames``, ``fps``,
+    ``duration_s`` and ``mass_kg``."""
+    return {
+        **verdict(checks, num_frames, need, fps),
+        "frames": num_frames,
+        "fps": fps,
+        "duration_s": num_frames / fps,
+        "mass_kg": mass,
+    }
+
+
 def _verdict(result: dict) -> str:
     """The verdict line of :func:`format_report`."""
     failed = ", ".join(result["failed"])

@@ -101,6 +101,20 @@ def _limit_excess(qpos: np.ndarray, index: ModelIndex) -> tuple[np.ndarray, np.n
     return np.maximum(excess.max(-1), 0.0), excess.argmax(-1)
 
 
+def deepest_contact(
+    data: mujoco.MjData, among: np.ndarray, names: list[str]
+) -> tuple[float, tuple[str, str]]:
+    """The deepest of the current contacts between two geoms that `among` (ngeom,) marks: its
+    depth (m) and its geoms' `names`; ``(0.0, ("", ""))`` when no two of them overlap."""
+    if data.ncon:
+        pairs = data.contact.geom
+        dist = np.where(among[pairs[:, 0]] & among[pairs[:, 1]], data.contact.dist, np.inf)
+        k = int(np.argmin(dist))
+        if dist[k] < 0:
+            return float(-dist[k]), (names[pairs[k, 0]], names[pairs[k, 1]])
+    return 0.0, ("", "")
+
+
 def measure(motion: Motion, mass: float = DEFAULT_MASS) -> Measurements:
     """Replay `motion` on the humanoid of total mass `mass` (kg) and measure every frame.
 
@@ -123,6 +137,7 @@ def measure(motion: Motion, mass: float = DEFAULT_MASS) -> Measurements:
     dt = 1.0 / fps
     body_geoms = index.body_geoms
     names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) for g in range(model.ngeom)]
+    limbs = np.arange(model.ngeom) != index.floor_geom
 
     sites = np.zeros((n, len(index.joint_sites), 3))
     xpos = np.zeros((n, model.ngeom, 3))
@@ -137,13 +152,7 @@ def measure(motion: Motion, mass: float = DEFAULT_MASS) -> Measurements:
         xpos[t] = data.geom_xpos
         xmat[t] = data.geom_xmat
         com[t] = data.subtree_com[index.joint_bodies[0]]
-        if data.ncon:
-            geoms = data.contact.geom
-            dist = np.where((geoms == index.floor_geom).any(axis=1), np.inf, data.contact.dist)
-            k = int(np.argmin(dist))
-            if dist[k] < 0:
-                self_depth[t] = -dist[k]
-                self_pair[t] = (names[geoms[k, 0]], names[geoms[k, 1]])
+        self_depth[t], self_pair[t] = deepest_contact(data, limbs, names)
 
     points = _geom_points(model, xpos, xmat)[:, body_geoms]  # (T, G, 2, 3)
     heights = points[..., 2].reshape(n, -1)

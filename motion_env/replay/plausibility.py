@@ -27,6 +27,7 @@ added to the report but does not decide it.
 from __future__ import annotations
 
 import json
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -37,7 +38,7 @@ from motion_env.motion.skeleton import FPS, JOINT_NAMES
 from motion_env.motion.types import Motion
 from motion_env.replay.humanoid import BALL_JOINTS, DEFAULT_MASS
 from motion_env.replay.inputs import check_mass, check_motion
-from motion_env.replay.judging import check_entry, runs, sentence, verdict
+from motion_env.replay.judging import judge_checks, report_head, runs
 from motion_env.replay.kinematic import CONTACT_HEIGHT, Measurements, measure
 from motion_env.replay.mjcf import MODEL_DIR
 
@@ -255,35 +256,44 @@ def _part(geom: str) -> str:
     return geom.replace("sole0", "foot").replace("sole1", "foot").replace("_", " ")
 
 
-def _message(name: str, m: Measurements, sig: np.ndarray, threshold: float, ranges: list) -> str:
-    """One sentence saying what a check found, in plain words."""
-    worst = int(np.argmax(sig))
-    value = float(sig[worst])
+NOTHING_FOUND = {
+    "penetration": "nothing goes below the floor",
+    "floating": "the body always touches the floor, or is in a ballistic flight",
+    "foot_skating": "no foot slides on the floor",
+    "self_penetration": "no two limbs pass through each other",
+    "joint_limits": "every joint stays within a human range",
+}
+"""What a check says when its signal is 0 on every frame (the others always name their worst)."""
+
+
+def shared_words(name: str, value: float, threshold: float, body: str, part: str = "") -> tuple[str, str]:
+    """``(what, allowed)`` of a check the humanoid and a robot share (penetration, floating,
+    foot_skating, root_force, root_torque) at its worst frame, where it is `value`.
+
+    body: "body" or "robot"; part: the geom that sinks (penetration) or the sole that slides
+    (foot_skating), in words.
+    """
     if name == "penetration":
-        if value == 0.0:
-            return "nothing goes below the floor"
-        what = f"the {_part(m.lowest_geom[worst])} sinks {100 * value:.1f} cm into the floor"
-        allowed = f"{100 * threshold:.1f} cm"
-    elif name == "floating":
-        if value == 0.0:
-            return "the body always touches the floor, or is in a ballistic flight"
-        what = f"the body stays {value:.2f} s in the air without falling like a thrown body"
-        allowed = f"{threshold:.2f} s"
-    elif name == "foot_skating":
-        if value == 0.0:
-            return "no foot slides on the floor"
-        point = SOLE_NAMES[int(skating_signal(m.soles, m.lowest, m.fps)[1][worst])]
-        what = f"the {point} {100 * value:.0f} cm along the floor within {SKATE_WINDOW:g} s"
-        allowed = f"{100 * threshold:.0f} cm"
-    elif name == "self_penetration":
-        if value == 0.0:
-            return "no two limbs pass through each other"
+        return f"the {part} sinks {100 * value:.1f} cm into the floor", f"{100 * threshold:.1f} cm"
+    if name == "floating":
+        what = f"the {body} stays {value:.2f} s in the air without falling like a thrown body"
+        return what, f"{threshold:.2f} s"
+    if name == "foot_skating":
+        what = f"the {part} {100 * value:.0f} cm along the floor within {SKATE_WINDOW:g} s"
+        return what, f"{100 * threshold:.0f} cm"
+    kind = "force" if name == "root_force" else "torque"
+    unit = UNITS[name]
+    what = f"the {body} needs an external {kind} of {value:.1f} {unit} that the floor cannot give"
+    return what, f"{threshold:.1f} {unit}"
+
+
+def _findings(m: Measurements, name: str, worst: int, value: float, threshold: float) -> tuple[str, str]:
+    """``(what, allowed)``: what a check found at its `worst` frame, where it is `value`, in words."""
+    if name == "self_penetration":
         a, b = (_part(s) for s in m.self_pair[worst])
         what = f"the {a} and the {b} overlap by {100 * value:.1f} cm"
         allowed = f"{100 * threshold:.1f} cm"
     elif name == "joint_limits":
-        if value == 0.0:
-            return "every joint stays within a human range"
         k = int(np.argmax(m.limit_excess[worst]))
         axis = int(m.limit_axis[worst, k])
         joint = JOINT_NAMES[BALL_JOINTS[k]]
@@ -298,12 +308,14 @@ def _message(name: str, m: Measurements, sig: np.ndarray, threshold: float, rang
         verb = "moves at" if name == "speed" else "accelerates at"
         what = f"the {joint} {verb} {value:.1f} {unit}"
         allowed = f"{threshold:.1f} {unit}"
-    else:
-        kind = "force" if name == "root_force" else "torque"
-        unit = "N/kg" if name == "root_force" else "N m/kg"
-        what = f"the body needs an external {kind} of {value:.1f} {unit} that the floor cannot give"
-        allowed = f"{threshold:.1f} {unit}"
-    return sentence(what, allowed, worst, ranges, m.fps)
+    elif name == "penetration":
+        what, allowed = shared_words(name, value, threshold, "body", _part(m.lowest_geom[worst]))
+    elif name == "foot_skating":
+        point = SOLE_NAMES[int(skating_signal(m.soles, m.lowest, m.fps)[1][worst])]
+        what, allowed = shared_words(name, value, threshold, "body", point)
+    else:  # floating, root_force, root_torque
+        what, allowed = shared_words(name, value, threshold, "body")
+    return what, allowed
 
 
 def report(m: Measurements, thresholds: dict[str, float]) -> dict:
@@ -316,23 +328,11 @@ def report(m: Measurements, thresholds: dict[str, float]) -> dict:
     """
     thresholds = check_thresholds(thresholds)
     sig = signals(m)
-    checks = {
-        name: check_entry(
-            sig[name],
-            thresholds[name],
-            UNITS[name],
-            lambda ranges, name=name: _message(name, m, sig[name], thresholds[name], ranges),
-        )
-        for name in CHECKS
-    }
+    checks = judge_checks(CHECKS, sig, thresholds, UNITS, m.fps, NOTHING_FOUND, partial(_findings, m))
     err = m.fit_error
     worst_joint = int(np.argmax(err.max(axis=0)))
     return {
-        **verdict(checks, m.num_frames, min_frames(m.fps), m.fps),
-        "frames": m.num_frames,
-        "fps": m.fps,
-        "duration_s": m.num_frames / m.fps,
-        "mass_kg": m.mass,
+        **report_head(checks, m.num_frames, m.fps, min_frames(m.fps), m.mass),
         "fit_error": {
             "mean_cm": float(100 * err.mean()),
             "max_cm": float(100 * err.max()),

@@ -35,21 +35,23 @@ resampled to 20 fps like the humanoid's, where their thresholds were calibrated
 from __future__ import annotations
 
 import json
+from functools import partial
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
-from motion_env.replay.judging import check_entry, sentence, verdict
+from motion_env.replay.judging import judge_checks, report_head
 from motion_env.replay.mjcf import MODEL_DIR
 from motion_env.replay.plausibility import (
+    NOTHING_FOUND,
     RESIDUAL_WINDOW,
-    SKATE_WINDOW,
     SOLE_NAMES,
     floating_signal,
     load_thresholds,
     min_frames,
     moving_average,
+    shared_words,
     skating_signal,
 )
 from motion_env.replay.robot_kinematic import RobotMeasurements, measure_robot
@@ -74,6 +76,12 @@ ROBOT_UNITS = {
     "self_collision": "m",
     "root_force": "N/kg",
     "root_torque": "N m/kg",
+}
+_ROBOT_NOTHING_FOUND = {
+    **NOTHING_FOUND,
+    "floating": "the robot always touches the floor, or is in a ballistic flight",
+    "joint_limits": "every joint stays within its range",
+    "self_collision": "no two parts of the robot collide",
 }
 
 
@@ -146,13 +154,9 @@ def _words(name: str) -> str:
     return name.replace("_", " ")
 
 
-def _message(name: str, m: RobotMeasurements, sig: np.ndarray, threshold: float, ranges: list) -> str:
-    """One sentence saying what a check found, in plain words."""
-    worst = int(np.argmax(sig))
-    value = float(sig[worst])
+def _findings(m: RobotMeasurements, name: str, worst: int, value: float, threshold: float) -> tuple[str, str]:
+    """``(what, allowed)``: what a check found at its `worst` frame, where it is `value`, in words."""
     if name == "joint_limits":
-        if value == 0.0:
-            return "every joint stays within its range"
         k = int(np.argmax(m.limit_excess[worst]))
         low, high = np.rad2deg(m.limit_ranges[k])
         count = int((np.rad2deg(m.limit_excess) > threshold).sum())
@@ -161,55 +165,29 @@ def _message(name: str, m: RobotMeasurements, sig: np.ndarray, threshold: float,
             f"[{low:.1f}, {high:.1f}] degrees ({count} joint-frames beyond the allowance in all)"
         )
         allowed = f"{threshold:g} degrees"
-    elif name == "penetration":
-        if value == 0.0:
-            return "nothing goes below the floor"
-        what = f"the {_words(m.lowest_geom[worst])} sinks {100 * value:.1f} cm into the floor"
-        allowed = f"{100 * threshold:.1f} cm"
-    elif name == "floating":
-        if value == 0.0:
-            return "the robot always touches the floor, or is in a ballistic flight"
-        what = f"the robot stays {value:.2f} s in the air without falling like a thrown body"
-        allowed = f"{threshold:.2f} s"
-    elif name == "foot_skating":
-        if value == 0.0:
-            return "no foot slides on the floor"
-        r = m.replay or m
-        point = SOLE_NAMES[int(skating_signal(r.soles, r.lowest, r.fps)[1][replay_frames(m)[worst]])]
-        what = f"the {point} {100 * value:.0f} cm along the floor within {SKATE_WINDOW:g} s"
-        allowed = f"{100 * threshold:.0f} cm"
     elif name == "self_collision":
-        if value == 0.0:
-            return "no two parts of the robot collide"
         a, b = (_words(s) for s in m.self_pair[worst])
         what = f"the {a} and the {b} collide {100 * value:.1f} cm deep"
         allowed = f"{100 * threshold:.1f} cm"
-    else:
-        kind = "force" if name == "root_force" else "torque"
-        unit = ROBOT_UNITS[name]
-        what = f"the robot needs an external {kind} of {value:.1f} {unit} that the floor cannot give"
-        allowed = f"{threshold:.1f} {unit}"
-    return sentence(what, allowed, worst, ranges, m.fps)
+    elif name == "penetration":
+        what, allowed = shared_words(name, value, threshold, "robot", _words(m.lowest_geom[worst]))
+    elif name == "foot_skating":
+        r = m.replay or m
+        point = SOLE_NAMES[int(skating_signal(r.soles, r.lowest, r.fps)[1][replay_frames(m)[worst]])]
+        what, allowed = shared_words(name, value, threshold, "robot", point)
+    else:  # floating, root_force, root_torque
+        what, allowed = shared_words(name, value, threshold, "robot")
+    return what, allowed
 
 
 def robot_report(m: RobotMeasurements, thresholds: dict[str, float]) -> dict:
     """The plausibility report (a JSON-serialisable dict) of measured robot trajectory `m`."""
     sig = robot_signals(m)
-    checks = {
-        name: check_entry(
-            sig[name],
-            thresholds[name],
-            ROBOT_UNITS[name],
-            lambda ranges, name=name: _message(name, m, sig[name], thresholds[name], ranges),
-        )
-        for name in ROBOT_CHECKS
-    }
+    checks = judge_checks(
+        ROBOT_CHECKS, sig, thresholds, ROBOT_UNITS, m.fps, _ROBOT_NOTHING_FOUND, partial(_findings, m)
+    )
     return {
-        **verdict(checks, m.num_frames, min_frames(m.fps), m.fps),
-        "frames": m.num_frames,
-        "fps": m.fps,
-        "duration_s": m.num_frames / m.fps,
-        "mass_kg": m.mass,
+        **report_head(checks, m.num_frames, m.fps, min_frames(m.fps), m.mass),
         "robot": m.name,
         "feet": list(m.feet),
         "floor_height": m.floor,

@@ -28,7 +28,7 @@ import numpy as np
 
 from motion_env.motion.skeleton import FPS
 from motion_env.replay.inputs import check_positive, check_qpos
-from motion_env.replay.kinematic import CONTACT_HEIGHT, root_inverse_dynamics
+from motion_env.replay.kinematic import CONTACT_HEIGHT, deepest_contact, root_inverse_dynamics
 
 FOOT_BODIES: tuple[tuple[str, str], ...] = (
     ("left_ankle_roll_link", "right_ankle_roll_link"),  # Unitree G1 (and H1-2)
@@ -328,49 +328,10 @@ def measure_robot(
     local = qpos.copy()
     local[:, 2] -= floor  # measure from a floor at z = 0
     feet_ids = find_feet(model, feet)
-    sole_bodies, sole_local = sole_points(model, feet_ids)
-    geoms = collision_geoms(model)
-    shapes = GeomPoints(model, geoms)
-    names = [geom_name(model, g) for g in range(model.ngeom)]
     root = int(model.jnt_bodyid[0])
-    robot_geom = model.geom_bodyid > 0
-
-    n = len(local)
-    data = mujoco.MjData(model)
-    lowest = np.zeros(n)
-    lowest_geom = [""] * n
-    com = np.zeros((n, 3))
-    soles = np.zeros((n, 4, 3))
-    self_depth = np.zeros(n)
-    self_pair: list[tuple[str, str]] = [("", "")] * n
-    floor_points = np.full((n, 5 * len(geoms), 3), np.inf)
-    for t in range(n):
-        data.qpos[:] = local[t]
-        mujoco.mj_forward(model, data)
-        points = shapes.bottoms(data)
-        per_geom = shapes.lowest_per_geom(points)
-        k = int(np.argmin(per_geom))
-        lowest[t], lowest_geom[t] = per_geom[k], names[geoms[k]]
-        for k in np.flatnonzero(per_geom < CONTACT_HEIGHT):
-            mine = points[shapes.starts[k] : shapes.ends[k]]
-            near = mine[mine[:, 2] < CONTACT_HEIGHT]
-            # The extremes of the geom's part near the floor span its support polygon.
-            pick = np.unique([*near[:, :2].argmin(axis=0), *near[:, :2].argmax(axis=0), near[:, 2].argmin()])
-            floor_points[t, 5 * k : 5 * k + len(pick)] = near[pick]
-        com[t] = data.subtree_com[root]
-        rotation = data.xmat[sole_bodies].reshape(-1, 3, 3)
-        soles[t] = data.xpos[sole_bodies] + np.einsum("kij,kj->ki", rotation, sole_local)
-        if data.ncon:
-            pairs = data.contact.geom
-            between = robot_geom[pairs[:, 0]] & robot_geom[pairs[:, 1]]
-            dist = np.where(between, data.contact.dist, np.inf)
-            k = int(np.argmin(dist))
-            if dist[k] < 0:
-                self_depth[t] = -dist[k]
-                self_pair[t] = (names[pairs[k, 0]], names[pairs[k, 1]])
-
+    frames = _measure_frames(model, local, feet_ids, root)
     mass = float(model.body_subtreemass[root])
-    _, residual = root_inverse_dynamics(model, root, local, floor_points, 1.0 / fps)
+    _, residual = root_inverse_dynamics(model, root, local, frames["floor_points"], 1.0 / fps)
     body = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in feet_ids]
     replay = None
     if resample and abs(fps - FPS) > 1e-6:
@@ -385,17 +346,58 @@ def measure_robot(
         feet=(body[0], body[1]),
         floor=floor,
         qpos=qpos,
-        lowest=lowest,
-        lowest_geom=lowest_geom,
-        com=com,
-        soles=soles,
-        self_depth=self_depth,
-        self_pair=self_pair,
+        **frames,
         limit_excess=limit_excess(model, qpos),
         limit_joints=[mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in joints],
         limit_ranges=ranges,
-        floor_points=floor_points,
         residual_force=np.linalg.norm(residual[:, :3], axis=1) / mass,
         residual_torque=np.linalg.norm(residual[:, 3:], axis=1) / mass,
         replay=replay,
     )
+
+
+def _measure_frames(model: mujoco.MjModel, qpos: np.ndarray, feet: tuple[int, int], root: int) -> dict:
+    """``mj_forward`` on every frame of `qpos` (T, nq), the floor at z = 0: the per-frame fields of
+    :class:`RobotMeasurements` that the pose alone gives (``lowest``, ``lowest_geom``, ``com``,
+    ``soles``, ``self_depth``, ``self_pair``, ``floor_points``)."""
+    sole_bodies, sole_local = sole_points(model, feet)
+    geoms = collision_geoms(model)
+    shapes = GeomPoints(model, geoms)
+    names = [geom_name(model, g) for g in range(model.ngeom)]
+    robot_geom = model.geom_bodyid > 0
+
+    n = len(qpos)
+    data = mujoco.MjData(model)
+    lowest = np.zeros(n)
+    lowest_geom = [""] * n
+    com = np.zeros((n, 3))
+    soles = np.zeros((n, 4, 3))
+    self_depth = np.zeros(n)
+    self_pair: list[tuple[str, str]] = [("", "")] * n
+    floor_points = np.full((n, 5 * len(geoms), 3), np.inf)
+    for t in range(n):
+        data.qpos[:] = qpos[t]
+        mujoco.mj_forward(model, data)
+        points = shapes.bottoms(data)
+        per_geom = shapes.lowest_per_geom(points)
+        k = int(np.argmin(per_geom))
+        lowest[t], lowest_geom[t] = per_geom[k], names[geoms[k]]
+        for k in np.flatnonzero(per_geom < CONTACT_HEIGHT):
+            mine = points[shapes.starts[k] : shapes.ends[k]]
+            near = mine[mine[:, 2] < CONTACT_HEIGHT]
+            # The extremes of the geom's part near the floor span its support polygon.
+            pick = np.unique([*near[:, :2].argmin(axis=0), *near[:, :2].argmax(axis=0), near[:, 2].argmin()])
+            floor_points[t, 5 * k : 5 * k + len(pick)] = near[pick]
+        com[t] = data.subtree_com[root]
+        rotation = data.xmat[sole_bodies].reshape(-1, 3, 3)
+        soles[t] = data.xpos[sole_bodies] + np.einsum("kij,kj->ki", rotation, sole_local)
+        self_depth[t], self_pair[t] = deepest_contact(data, robot_geom, names)
+    return {
+        "lowest": lowest,
+        "lowest_geom": lowest_geom,
+        "com": com,
+        "soles": soles,
+        "self_depth": self_depth,
+        "self_pair": self_pair,
+        "floor_points": floor_points,
+    }

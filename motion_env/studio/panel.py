@@ -71,9 +71,17 @@ class ControlPanel:
     def __init__(self, studio: Playback) -> None:
         self.studio = studio
         gui = studio.server.gui
-        session = studio.session
         gui.configure_theme(control_layout="floating", control_width="large", show_logo=False)
+        self._add_character(gui, studio.session)
+        self._add_route(gui)
+        self._add_joint_target(gui)
+        self._add_playback(gui, studio.session)
+        self._add_numbers(gui)
+        self._add_keep(gui)
+        self._wire()
 
+    # ------------------------------------------------------------------ the folders
+    def _add_character(self, gui: viser.GuiApi, session: StudioSession) -> None:
         with gui.add_folder("Character"):
             self.character = gui.add_dropdown(
                 "Character",
@@ -89,6 +97,7 @@ class ControlPanel:
                 "Apply caption", hint="from the next token on (0.2 s), no pop"
             )
 
+    def _add_route(self, gui: viser.GuiApi) -> None:
         with gui.add_folder("Route"):
             self.click_mode = gui.add_dropdown(
                 "Click places",
@@ -110,6 +119,7 @@ class ControlPanel:
             self.clear_goal = gui.add_button("Stop the A* agent", hint="its last plan stays as the route")
             self.clear_obstacles = gui.add_button("Clear obstacles")
 
+    def _add_joint_target(self, gui: viser.GuiApi) -> None:
         with gui.add_folder("Joint target"):
             self.target_joint = gui.add_dropdown(
                 "Joint",
@@ -143,6 +153,7 @@ class ControlPanel:
                 "Apply head limit", hint="from half a second on, for the selected character"
             )
 
+    def _add_playback(self, gui: viser.GuiApi, session: StudioSession) -> None:
         with gui.add_folder("Playback"):
             self.play = gui.add_button("Pause", hint="play / pause")
             self.step = gui.add_button("Step", hint="one frame (1/20 s), then pause")
@@ -157,6 +168,7 @@ class ControlPanel:
                 "Follow with the camera", True, hint="the view moves along with the character"
             )
 
+    def _add_numbers(self, gui: viser.GuiApi) -> None:
         with gui.add_folder("Numbers"):
             self.numbers = gui.add_markdown("")
             self.judge = gui.add_button(
@@ -165,6 +177,7 @@ class ControlPanel:
             )
             self.verdict = gui.add_markdown("")
 
+    def _add_keep(self, gui: viser.GuiApi) -> None:
         with gui.add_folder("Keep", expand_by_default=False):
             self.save_npz = gui.add_button("Download .npz", hint="the episode so far (Motion.save)")
             self.save_bvh = gui.add_button(
@@ -175,8 +188,6 @@ class ControlPanel:
             )
             self.record = gui.add_button("Start recording", hint="then stop: an .mp4 of the recorded frames")
 
-        self._wire()
-
     # ------------------------------------------------------------------ callbacks
     @property
     def selected(self) -> int:
@@ -184,6 +195,24 @@ class ControlPanel:
 
     def _wire(self) -> None:
         studio, session = self.studio, self.studio.session
+
+        # Buttons that only hand one change to the session, with the title of the notification
+        # that reports a mistake.
+        for button, title, change in (
+            (self.clear_route, "Route", lambda: session.clear_route(self.selected)),
+            (self.clear_goal, "A* agent", lambda: session.clear_goal(self.selected)),
+            (self.clear_obstacles, "Obstacles", session.clear_obstacles),
+            (self.clear_targets, "Joint targets", lambda: session.clear_joint_targets(self.selected)),
+        ):
+            button.on_click(reported(title)(lambda _, change=change: change()))
+        for button, title, kind in (
+            (self.save_npz, "Download", "npz"),
+            (self.save_bvh, "Download", "bvh"),
+            (self.save_csv, "Robot CSV", "csv"),
+        ):
+            button.on_click(
+                reported(title)(lambda event, kind=kind: studio.download(event.client, self.selected, kind))
+            )
 
         @self.character.on_update
         def _(_: viser.GuiEvent) -> None:
@@ -195,26 +224,6 @@ class ControlPanel:
             text = session.set_caption(self.selected, self.caption.value)
             notify(event.client, "Caption applied", _short(text, 120))
 
-        @self.clear_route.on_click
-        @reported("Route")
-        def _(_: viser.GuiEvent) -> None:
-            session.clear_route(self.selected)
-
-        @self.clear_goal.on_click
-        @reported("A* agent")
-        def _(_: viser.GuiEvent) -> None:
-            session.clear_goal(self.selected)
-
-        @self.clear_obstacles.on_click
-        @reported("Obstacles")
-        def _(_: viser.GuiEvent) -> None:
-            session.clear_obstacles()
-
-        @self.clear_targets.on_click
-        @reported("Joint targets")
-        def _(_: viser.GuiEvent) -> None:
-            session.clear_joint_targets(self.selected)
-
         @self.apply_head_limit.on_click
         @reported("Head limit not applied")
         def _(event: viser.GuiEvent) -> None:
@@ -223,44 +232,17 @@ class ControlPanel:
             text = f"the head stays below {height:g} m" if height else "no head limit"
             notify(event.client, "Head limit", text)
 
-        @self.play.on_click
-        def _(_: viser.GuiEvent) -> None:
-            studio.set_playing(not studio.playing)
-
-        @self.step.on_click
-        def _(_: viser.GuiEvent) -> None:
-            studio.step_once()
-
         @self.reset.on_click
         @reported("Reset")
         def _(_: viser.GuiEvent) -> None:
             session.reset(int(self.seed.value))
             studio.restart_clock()
 
-        @self.speed.on_update
-        def _(_: viser.GuiEvent) -> None:
-            studio.speed = float(self.speed.value)
-
         @self.judge.on_click
         @reported("Judge")
         def _(_: viser.GuiEvent) -> None:
             self.verdict.content = "judging..."
             self.verdict.content = studio.judge(self.selected, JUDGE_SECONDS)
-
-        @self.save_npz.on_click
-        @reported("Download")
-        def _(event: viser.GuiEvent) -> None:
-            studio.download(event.client, self.selected, "npz")
-
-        @self.save_bvh.on_click
-        @reported("Download")
-        def _(event: viser.GuiEvent) -> None:
-            studio.download(event.client, self.selected, "bvh")
-
-        @self.save_csv.on_click
-        @reported("Robot CSV")
-        def _(event: viser.GuiEvent) -> None:
-            studio.download(event.client, self.selected, "csv")
 
         @self.record.on_click
         @reported("Recording")
@@ -271,6 +253,13 @@ class ControlPanel:
             else:
                 self.record.label = "Start recording"
                 studio.stop_recording(event.client, self.selected)
+
+        @self.speed.on_update
+        def _(_: viser.GuiEvent) -> None:
+            studio.speed = float(self.speed.value)
+
+        self.play.on_click(lambda _: studio.set_playing(not studio.playing))
+        self.step.on_click(lambda _: studio.step_once())
 
     # ------------------------------------------------------------------ numbers
     def show_playing(self, playing: bool) -> None:

@@ -60,6 +60,47 @@ def _polyline(points: np.ndarray) -> np.ndarray:
     return np.stack([points[:-1], points[1:]], axis=1).astype(np.float32)
 
 
+def _add_floor(scene: viser.SceneApi) -> viser.MeshHandle:
+    """The floor and its grid (1 m sections of 0.5 m cells); returns the floor.
+
+    The floor is a real mesh: clicks on it are where the camera ray meets y = 0, and a drag with
+    shift held draws a path on it.
+    """
+    size = 2 * ARENA_HALF_SIZE
+    verts = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], np.float32) * ARENA_HALF_SIZE
+    verts[:, 1] = -0.002
+    floor = scene.add_mesh_simple(
+        "/floor",
+        verts,
+        np.array([[0, 2, 1], [0, 3, 2]], np.uint32),
+        color=(238, 240, 243),
+        side="double",
+        cast_shadow=False,
+        receive_shadow=False,
+    )
+    scene.add_grid(
+        "/grid",
+        width=size,
+        height=size,
+        plane="xz",
+        cell_size=0.5,
+        section_size=1.0,
+        cell_color=(205, 208, 214),
+        section_color=(150, 155, 165),
+        shadow_opacity=0.0,
+    )
+    return floor
+
+
+def _floor_line(
+    scene: viser.SceneApi, name: str, color: str, thickness: float, visible: bool = True
+) -> viser.LineSegmentsHandle:
+    """A line on the floor, empty until its first points."""
+    return scene.add_line_segments(
+        name, _polyline(_on_floor(np.zeros((1, 2)))), _rgb(color), thickness=thickness, visible=visible
+    )
+
+
 # A cylinder's axis in viser is its local +Z; the studio's world is Y up.
 _Z_TO_Y = (np.cos(-np.pi / 4), np.sin(-np.pi / 4), 0.0, 0.0)
 
@@ -82,85 +123,48 @@ class SceneView:
         self._server = server
         self._count = count
         self._on_drag_waypoint = on_drag_waypoint
-        scene = server.scene
-        scene.set_up_direction("+y")
-        size = 2 * ARENA_HALF_SIZE
-        # The floor is a real mesh: clicks on it are where the camera ray meets y = 0, and a drag
-        # with shift held draws a path on it.
-        verts = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], np.float32) * ARENA_HALF_SIZE
-        verts[:, 1] = -0.002
-        self.floor = scene.add_mesh_simple(
-            "/floor",
-            verts,
-            np.array([[0, 2, 1], [0, 3, 2]], np.uint32),
-            color=(238, 240, 243),
-            side="double",
-            cast_shadow=False,
-            receive_shadow=False,
-        )
-        scene.add_grid(
-            "/grid",
-            width=size,
-            height=size,
-            plane="xz",
-            cell_size=0.5,
-            section_size=1.0,
-            cell_color=(205, 208, 214),
-            section_color=(150, 155, 165),
-            shadow_opacity=0.0,
-        )
+        server.scene.set_up_direction("+y")
+        self.floor = _add_floor(server.scene)
         self._bones: list = []  # per character: its nodes
         self._joints: list = []
         self._heads: list = []
         self._trails: list = []
         self._ahead: list = []
         self._labels: list = []  # a number over each head, for a crowd
-        bones, joints = bone_colors(), joint_colors()
-        zero = np.zeros((22, 3), np.float32)
         for i in range(count):
-            self._bones.append(
-                scene.add_line_segments(f"/character{i}/bones", bone_segments(zero), bones, thickness=0.045)
-            )
-            self._joints.append(
-                scene.add_point_cloud(
-                    f"/character{i}/joints",
-                    zero,
-                    joints,
-                    point_size=0.06,
-                    point_shape="rounded",
-                    precision="float32",
-                )
-            )
-            self._heads.append(
-                scene.add_icosphere(f"/character{i}/head", 0.1, _rgb(SPINE_COLOR), subdivisions=2)
-            )
-            self._trails.append(
-                scene.add_line_segments(
-                    f"/character{i}/trail",
-                    _polyline(_on_floor(np.zeros((1, 2)))),
-                    _rgb(TRAIL_COLOR),
-                    thickness=0.03,
-                )
-            )
-            self._ahead.append(
-                scene.add_line_segments(
-                    f"/character{i}/ahead",
-                    _polyline(_on_floor(np.zeros((1, 2)))),
-                    _rgb(TARGET_COLOR),
-                    thickness=0.02,
-                    visible=False,
-                )
-            )
-            if count > 1:
-                self._labels.append(
-                    scene.add_label(f"/character{i}/label", str(i + 1), anchor="bottom-center")
-                )
+            self._add_character(i)
         self._waypoint_nodes: list[list] = [[] for _ in range(count)]
         self._goal_nodes: list = [None] * count
         self._target_nodes: list[list] = [[] for _ in range(count)]
         self._obstacle_nodes: list = []
         self._drawn_version: tuple | None = None
         self._drawn_obstacles: np.ndarray = np.zeros((0, 3))
+
+    def _add_character(self, i: int) -> None:
+        """Character i's nodes: bones, joints, head, trail, the line to its next waypoints and, in a
+        crowd, its number; their points come with the first frame."""
+        scene = self._server.scene
+        zero = np.zeros((22, 3), np.float32)
+        self._bones.append(
+            scene.add_line_segments(
+                f"/character{i}/bones", bone_segments(zero), bone_colors(), thickness=0.045
+            )
+        )
+        self._joints.append(
+            scene.add_point_cloud(
+                f"/character{i}/joints",
+                zero,
+                joint_colors(),
+                point_size=0.06,
+                point_shape="rounded",
+                precision="float32",
+            )
+        )
+        self._heads.append(scene.add_icosphere(f"/character{i}/head", 0.1, _rgb(SPINE_COLOR), subdivisions=2))
+        self._trails.append(_floor_line(scene, f"/character{i}/trail", TRAIL_COLOR, 0.03))
+        self._ahead.append(_floor_line(scene, f"/character{i}/ahead", TARGET_COLOR, 0.02, visible=False))
+        if self._count > 1:
+            self._labels.append(scene.add_label(f"/character{i}/label", str(i + 1), anchor="bottom-center"))
 
     # ------------------------------------------------------------------ per frame
     def draw(self, snap: Snapshot) -> None:

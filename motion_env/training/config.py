@@ -21,7 +21,7 @@ from typing import Any
 
 import torch
 
-from motion_env.motion.checks import check_at_least
+from motion_env.motion.validation import check_at_least
 
 _EXPECTED = {bool: "True or False", int: "an integer", float: "a number", str: "a non-empty string"}
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -35,10 +35,10 @@ from motion_env.models.checkpoint import (
     text_encoder_record,
 )
 from motion_env.models.controller import ControllerConfig, PathController, to_heading_frame_torch
-from motion_env.motion.checks import check_above, check_at_least
 from motion_env.motion.skeleton import FPS
 from motion_env.motion.trajectory import root_path_from_joints, waypoint_errors
-from motion_env.text.encoders import DEFAULT_TEXT_ENCODER, TextEncoder, jitter_embeddings, load_text_encoder
+from motion_env.motion.validation import check_above, check_at_least
+from motion_env.text.encoders import DEFAULT_TEXT_ENCODER, TextEncoder, jitter_embeddings
 from motion_env.training import loop
 from motion_env.training.config import TrainConfig
 
@@ -448,10 +448,7 @@ def train_controller(
     device = config.device
     torch.manual_seed(config.seed)
     out_path = Path(out_path)
-    if text_encoder is None:
-        text_encoder = load_text_encoder(config.encoder, device=device)
-    else:
-        config = replace(config, encoder=text_encoder.name)
+    config, text_encoder = loop.with_text_encoder(config, text_encoder)
     train = path_data_from_clips(read_split(Path(data_dir), "train"), text_encoder.encode)
     val = path_data_from_clips(read_split(Path(data_dir), "val"), text_encoder.encode)
     tqdm.write(f"controller: {len(train.paths)} train clips, {len(val.paths)} val clips")
@@ -469,11 +466,10 @@ def train_controller(
         tqdm.write(f"controller: resuming {out_path} at step {start}")
     tqdm.write(f"controller: {model.num_parameters() / 1e6:.2f} M parameters")
 
-    def save(step: int, metrics: dict[str, float]) -> None:
-        loop.save_training_checkpoint(
-            out_path, kind=CHECKPOINT_KIND, model=model, optimizer=optimizer, step=step, settings=config,
-            metrics=metrics, text_encoder=text_encoder_record(text_encoder),
-        )  # fmt: skip
+    save = loop.checkpoint_writer(
+        out_path, kind=CHECKPOINT_KIND, model=model, optimizer=optimizer, settings=config,
+        text_encoder=text_encoder_record(text_encoder),
+    )  # fmt: skip
 
     _, step = fit(
         model, train, config, optimizer, start, save=save,

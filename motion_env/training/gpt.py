@@ -12,7 +12,7 @@ the learning-rate schedule and the checkpoints are :mod:`motion_env.training.loo
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -28,8 +28,8 @@ from motion_env.models.checkpoint import (
 from motion_env.models.gpt import GPTConfig, TokenGPT
 from motion_env.models.normalizer import Normalizer
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
-from motion_env.motion.checks import check_above, check_at_least, check_fraction
-from motion_env.text.encoders import DEFAULT_TEXT_ENCODER, TextEncoder, jitter_embeddings, load_text_encoder
+from motion_env.motion.validation import check_above, check_at_least, check_fraction
+from motion_env.text.encoders import DEFAULT_TEXT_ENCODER, TextEncoder, jitter_embeddings
 from motion_env.training import loop
 from motion_env.training.config import TrainConfig
 
@@ -85,6 +85,7 @@ class _TokenSet:
             self.names.append(clip.name)
         if not self.codes:
             raise ValueError("no clip with at least two tokens and a caption")
+        self.lengths = np.array([c.shape[0] for c in self.codes])  # tokens per clip
 
     def __len__(self) -> int:
         return len(self.codes)
@@ -190,20 +191,8 @@ def train_gpt(
     config = config or GPTTrainConfig()
     device = config.device
     vq, vq_ckpt = load_checkpoint(vqvae_path, "vqvae", VQVAEConfig, VQVAE, device)
-    if text_encoder is None:
-        text_encoder = load_text_encoder(config.encoder, device=device)
-    else:
-        config = replace(config, encoder=text_encoder.name)
-    model_config = model_config or GPTConfig(text_dim=int(text_encoder.dim))
-    if model_config.vocab_size != vq.config.codebook_size:
-        model_config = config_from_dict(
-            GPTConfig, {**asdict(model_config), "vocab_size": vq.config.codebook_size}
-        )
-    if model_config.text_dim != text_encoder.dim:
-        raise ValueError(
-            f"GPTConfig.text_dim={model_config.text_dim} but the text encoder {text_encoder.name} "
-            f"is {text_encoder.dim}-d"
-        )
+    config, text_encoder = loop.with_text_encoder(config, text_encoder)
+    model_config = _model_config(model_config, vq, text_encoder)
     normalizer = loop.load_normalizer(data_dir)
     train = _TokenSet(loop.load_split(data_dir, "train"), vq, normalizer, device)
     val = _TokenSet(loop.load_split(data_dir, "val"), vq, normalizer, device)
@@ -211,40 +200,21 @@ def train_gpt(
 
     torch.manual_seed(config.seed)
     model = TokenGPT(model_config).to(device)
-    decay = [p for n, p in model.named_parameters() if p.ndim >= 2 and "emb" not in n]
-    no_decay = [p for n, p in model.named_parameters() if not (p.ndim >= 2 and "emb" not in n)]
-    opt = torch.optim.AdamW(
-        [{"params": decay, "weight_decay": 0.1}, {"params": no_decay, "weight_decay": 0.0}],
-        lr=config.lr, betas=(0.9, 0.95),
-    )  # fmt: skip
+    opt = _optimizer(model, config.lr)
     ckpt = loop.resume_checkpoint(out_path, CHECKPOINT_KIND, config.resume, model_config)
     if ckpt is not None:
         check_text_encoder(ckpt, text_encoder, out_path)
     start = loop.restore(ckpt, model, opt)
     rng = np.random.default_rng([config.seed, start])
-    L, B = model_config.block_size, config.batch_size
-    n_tokens = np.array([c.shape[0] for c in train.codes])
-    weights = n_tokens / n_tokens.sum()  # a clip is drawn in proportion to its length
-
-    def save(step: int, metrics: dict[str, float]) -> None:
-        loop.save_training_checkpoint(
-            out_path, kind=CHECKPOINT_KIND, model=model, optimizer=opt, step=step, settings=config,
-            metrics=metrics, text_encoder=text_encoder_record(text_encoder),
-            vqvae={"path": str(vqvae_path), "step": int(vq_ckpt.get("step", 0))},
-        )  # fmt: skip
+    save = loop.checkpoint_writer(
+        out_path, kind=CHECKPOINT_KIND, model=model, optimizer=opt, settings=config,
+        text_encoder=text_encoder_record(text_encoder),
+        vqvae={"path": str(vqvae_path), "step": int(vq_ckpt.get("step", 0))},
+    )  # fmt: skip
 
     def train_step(step: int) -> dict[str, float]:
         model.train()
-        idx = rng.choice(len(train), size=B, p=weights)
-        span = np.maximum(n_tokens[idx] - L, 0)
-        starts = np.where(rng.random(B) < config.start_crop, 0, (rng.random(B) * (span + 1)).astype(int))
-        # Pad only to the longest crop of the batch: most clips are far shorter than the window.
-        length = int(min(L, (n_tokens[idx] - starts).max()))
-        prev, path, targets, text = _gpt_batch(
-            train, idx, starts, length, model_config.start_token, table, caption_row, rng.random(B)
-        )
-        text = jitter_embeddings(text, config.text_noise, rng)
-        drop = torch.from_numpy(rng.random(B) < config.text_drop)
+        prev, path, targets, text, drop = _sample_batch(train, rng, config, model_config, table, caption_row)
         _, loss = model(
             prev.to(device), path.to(device), text.to(device), targets.to(device), drop.to(device)
         )
@@ -265,3 +235,55 @@ def train_gpt(
     save(result.step, metrics)
     model.train(False)
     return metrics
+
+
+def _model_config(model_config: GPTConfig | None, vq: VQVAE, text_encoder: TextEncoder) -> GPTConfig:
+    """The GPT's config: `model_config` (default: GPTConfig() at the text encoder's width) with the
+    VQ-VAE's codebook as its vocabulary; ValueError when its text width is not the encoder's."""
+    model_config = model_config or GPTConfig(text_dim=int(text_encoder.dim))
+    if model_config.vocab_size != vq.config.codebook_size:
+        model_config = config_from_dict(
+            GPTConfig, {**asdict(model_config), "vocab_size": vq.config.codebook_size}
+        )
+    if model_config.text_dim != text_encoder.dim:
+        raise ValueError(
+            f"GPTConfig.text_dim={model_config.text_dim} but the text encoder {text_encoder.name} "
+            f"is {text_encoder.dim}-d"
+        )
+    return model_config
+
+
+def _optimizer(model: TokenGPT, lr: float) -> torch.optim.AdamW:
+    """AdamW with weight decay on the weight matrices only (not on embeddings, biases or norms)."""
+    decay = [p for n, p in model.named_parameters() if p.ndim >= 2 and "emb" not in n]
+    no_decay = [p for n, p in model.named_parameters() if not (p.ndim >= 2 and "emb" not in n)]
+    return torch.optim.AdamW(
+        [{"params": decay, "weight_decay": 0.1}, {"params": no_decay, "weight_decay": 0.0}],
+        lr=lr, betas=(0.9, 0.95),
+    )  # fmt: skip
+
+
+def _sample_batch(
+    data: _TokenSet,
+    rng: np.random.Generator,
+    config: GPTTrainConfig,
+    model_config: GPTConfig,
+    text_table: torch.Tensor,
+    caption_row: dict[str, int],
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """A training batch ``(prev, path, targets, text, drop)`` of ``config.batch_size`` crops of at
+    most a window: clips drawn in proportion to their length, a share of the crops at the clip's
+    first token, a random caption of the clip (jittered), and `drop` marking the samples trained
+    with the null text."""
+    L, B = model_config.block_size, config.batch_size
+    idx = rng.choice(len(data), size=B, p=data.lengths / data.lengths.sum())
+    span = np.maximum(data.lengths[idx] - L, 0)
+    starts = np.where(rng.random(B) < config.start_crop, 0, (rng.random(B) * (span + 1)).astype(int))
+    # Pad only to the longest crop of the batch: most clips are far shorter than the window.
+    length = int(min(L, (data.lengths[idx] - starts).max()))
+    prev, path, targets, text = _gpt_batch(
+        data, idx, starts, length, model_config.start_token, text_table, caption_row, rng.random(B)
+    )
+    text = jitter_embeddings(text, config.text_noise, rng)
+    drop = torch.from_numpy(rng.random(B) < config.text_drop)
+    return prev, path, targets, text, drop

@@ -5,9 +5,10 @@ A trainer supplies one optimisation step as a function of the (0-based) step ind
 stopped to the total, shows a tqdm progress bar, logs the loss terms, validates on the val split
 every ``eval_every`` steps, writes a checkpoint every ``save_every`` steps, at the last step and
 when the time limit is hit, and stops at the time limit. :func:`resume_checkpoint`,
-:func:`restore` and :func:`save_training_checkpoint` read and write the training checkpoints
-(the project's format, :mod:`motion_env.models.checkpoint`, plus optimizer state, step, settings
-and metrics).
+:func:`restore` and :func:`save_training_checkpoint` (:func:`checkpoint_writer`, the loop's
+`save`) read and write the training checkpoints (the project's format,
+:mod:`motion_env.models.checkpoint`, plus optimizer state, step, settings and metrics);
+:func:`with_text_encoder` picks the text encoder of a run.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +26,7 @@ from tqdm.auto import tqdm
 from motion_env.data.dataset import load_stats, read_split
 from motion_env.models.checkpoint import read_checkpoint, save_checkpoint
 from motion_env.models.normalizer import Normalizer
+from motion_env.text.encoders import TextEncoder, load_text_encoder
 from motion_env.training.config import TrainConfig
 
 
@@ -50,6 +52,15 @@ def load_split(data_dir: Path, split: str) -> list[Any]:
 def load_normalizer(data_dir: Path) -> Normalizer:
     """The dataset's feature statistics (``Mean.npy`` / ``Std.npy``)."""
     return Normalizer(*load_stats(data_dir))
+
+
+def with_text_encoder(config: Any, text_encoder: TextEncoder | None) -> tuple[Any, TextEncoder]:
+    """The settings and the text encoder of a run: `text_encoder` when one is given (its name then
+    replaces ``config.encoder``, so that the checkpoint names the encoder actually used), else
+    ``config.encoder`` loaded on ``config.device``."""
+    if text_encoder is None:
+        return config, load_text_encoder(config.encoder, device=config.device)
+    return replace(config, encoder=text_encoder.name), text_encoder
 
 
 # --- checkpoints ---------------------------------------------------------------------------
@@ -102,6 +113,27 @@ def save_training_checkpoint(
         path, kind=kind, config=model.config, model=model, optimizer=optimizer.state_dict(), step=step,
         settings=settings.to_dict(), metrics=metrics, **extra,
     )  # fmt: skip
+
+
+def checkpoint_writer(
+    path: Path,
+    *,
+    kind: str,
+    model: Any,
+    optimizer: torch.optim.Optimizer,
+    settings: TrainConfig,
+    **extra: Any,
+) -> Callable[[int, dict[str, float]], None]:
+    """The `save` of :func:`run_loop`: ``save(step, metrics)`` writes
+    :func:`save_training_checkpoint` of `model` and `optimizer` at that step."""
+
+    def save(step: int, metrics: dict[str, float]) -> None:
+        save_training_checkpoint(
+            path, kind=kind, model=model, optimizer=optimizer, step=step, settings=settings,
+            metrics=metrics, **extra,
+        )  # fmt: skip
+
+    return save
 
 
 # --- the loop ------------------------------------------------------------------------------

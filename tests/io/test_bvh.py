@@ -51,33 +51,32 @@ _SKELETON: dict[str, tuple[str | None, tuple[float, float, float]]] = {
 _END_SITES = {"Head": (0.0, 10.0, 0.0), "LeftHand": (8.0, 0.0, 0.0), "RightHand": (-8.0, 0.0, 0.0)}
 _END_SITES |= {"LeftToeBase": (0.0, 0.0, 5.0), "RightToeBase": (0.0, 0.0, 5.0)}
 
-_BANDAI_NAMES = {"Chest": "Chest"} | {
-    f"{side}{part}": f"{bandai}_{side[0]}"
-    for side in ("Left", "Right")
-    for part, bandai in (
-        ("Shoulder", "Shoulder"), ("Arm", "UpperArm"), ("ForeArm", "LowerArm"), ("Hand", "Hand"),
-        ("UpLeg", "UpperLeg"), ("Leg", "LowerLeg"), ("Foot", "Foot"), ("ToeBase", "Toes"),
-    )
-}  # fmt: skip
-_DAZ_NAMES = {"Hips": "hip", "Spine": "abdomen", "Chest": "chest", "Neck": "neck", "Head": "head"} | {
-    f"{side}{part}": f"{side[0].lower()}{daz}"
-    for side in ("Left", "Right")
-    for part, daz in (
-        ("Shoulder", "Collar"), ("Arm", "Shldr"), ("ForeArm", "ForeArm"), ("Hand", "Hand"),
-        ("UpLeg", "Thigh"), ("Leg", "Shin"), ("Foot", "Foot"), ("ToeBase", "Toe"),
-    )
-}  # fmt: skip
+
+def _both_sides(template: str, **parts: str) -> dict[str, str]:
+    """role -> name for the left and right roles of a naming: `parts` maps a role's part ("UpLeg")
+    to the naming's ("Thigh"), put into `template` with the side as {S} ("L", "R") or {s} ("l", "r")."""
+    return {
+        f"{side}{part}": template.format(part=theirs, S=side[0], s=side[0].lower())
+        for side in ("Left", "Right")
+        for part, theirs in parts.items()
+    }
+
+
+_BANDAI_NAMES = {"Chest": "Chest"} | _both_sides(
+    "{part}_{S}", Shoulder="Shoulder", Arm="UpperArm", ForeArm="LowerArm", Hand="Hand",
+    UpLeg="UpperLeg", Leg="LowerLeg", Foot="Foot", ToeBase="Toes",
+)  # fmt: skip
+_DAZ_NAMES = {"Hips": "hip", "Spine": "abdomen", "Chest": "chest", "Neck": "neck", "Head": "head"}
+_DAZ_NAMES |= _both_sides(
+    "{s}{part}", Shoulder="Collar", Arm="Shldr", ForeArm="ForeArm", Hand="Hand",
+    UpLeg="Thigh", Leg="Shin", Foot="Foot", ToeBase="Toe",
+)  # fmt: skip
 _MIXAMO_NAMES = {role: f"mixamorig:{role}" for role in _SKELETON} | {"Chest": "mixamorig:Spine1"}
-_BIPED_NAMES = {"Hips": "Bip01 Pelvis", "Spine": "Bip01 Spine", "Chest": "Bip01 Spine1"} | {
-    "Neck": "Bip01 Neck", "Head": "Bip01 Head"
-} | {
-    f"{side}{part}": f"Bip01 {side[0]} {biped}"
-    for side in ("Left", "Right")
-    for part, biped in (
-        ("Shoulder", "Clavicle"), ("Arm", "UpperArm"), ("ForeArm", "Forearm"), ("Hand", "Hand"),
-        ("UpLeg", "Thigh"), ("Leg", "Calf"), ("Foot", "Foot"), ("ToeBase", "Toe0"),
-    )
-}  # fmt: skip
+_BIPED_NAMES = {"Hips": "Bip01 Pelvis", "Spine": "Bip01 Spine", "Chest": "Bip01 Spine1"}
+_BIPED_NAMES |= {"Neck": "Bip01 Neck", "Head": "Bip01 Head"} | _both_sides(
+    "Bip01 {S} {part}", Shoulder="Clavicle", Arm="UpperArm", ForeArm="Forearm", Hand="Hand",
+    UpLeg="Thigh", Leg="Calf", Foot="Foot", ToeBase="Toe0",
+)  # fmt: skip
 NAMINGS = {"motionbuilder": {}, "bandai": _BANDAI_NAMES, "daz": _DAZ_NAMES, "mixamo": _MIXAMO_NAMES}
 NAMINGS["biped"] = _BIPED_NAMES
 

@@ -19,7 +19,7 @@ import random
 import re
 from collections.abc import Sequence
 
-from motion_env.data.captions.grammar import VERBS, article, gerund, inflect, join, third_person
+from motion_env.data.captions.grammar import VERBS, article, gerund, inflect, join, third_person, verb_lemma
 from motion_env.data.captions.phrases import load
 from motion_env.data.captions.sentences import DEFAULT_NUM_CAPTIONS, PEOPLE, draw
 
@@ -80,16 +80,6 @@ def _fix_objects(words: list[str]) -> list[str]:
     return out
 
 
-def _verb_lemma(word: str) -> str | None:
-    """The base form of ``word`` when it is a known verb (``jumps`` -> ``jump``), else None."""
-    if word in VERBS:
-        return word
-    for suffix, repl in (("ies", "y"), ("es", ""), ("s", "")):
-        if word.endswith(suffix) and word[: -len(suffix)] + repl in VERBS:
-            return word[: -len(suffix)] + repl
-    return None
-
-
 def _action_phrases(action: str) -> tuple[str, ...]:
     """Verb phrases (base form, ^ on the verb) for one comma-separated action of a description."""
     words = action.split()
@@ -101,7 +91,7 @@ def _action_phrases(action: str) -> tuple[str, ...]:
     if first in VERBS:
         return ("^" + " ".join(_fix_objects(words)),)
     # "slow walk", "forward jumps" -> "walks slowly", "jumps forward".
-    lemma = _verb_lemma(last)
+    lemma = verb_lemma(last)
     if lemma and len(words) > 1 and all(w in _MODIFIER_ADVERBS for w in words[:-1]):
         return (f"^{lemma} " + " ".join(_MODIFIER_ADVERBS[w] for w in words[:-1]),)
     if first in _MODIFIER_ADVERBS.values() or first in ("left", "right", "up", "down", "around"):
@@ -115,7 +105,7 @@ def _action_phrases(action: str) -> tuple[str, ...]:
         return ("^have " + " ".join(_fix_objects(["x", *words])[1:]),)
     if len(words) == 1 and first.endswith("ing"):
         return (f"^be {first}",)
-    if _verb_lemma(last) == last and len(words) > 1 and first not in _DETERMINERS:
+    if verb_lemma(last) == last and len(words) > 1 and first not in _DETERMINERS:
         return (f"^do {article(first)} {action}",)  # "crossover dribble" -> "does a crossover dribble"
     return (f"^do {action}",)
 
@@ -229,7 +219,7 @@ def description_label(description: str) -> str:
         return "unlabelled"
     words = actions[0].split()
     for word in (words[0], words[-1]):
-        lemma = _verb_lemma(word.split("/")[0])
+        lemma = verb_lemma(word.split("/")[0])
         if lemma:
             return lemma
     return actions[0]

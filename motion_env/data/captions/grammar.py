@@ -44,6 +44,17 @@ def gerund(verb: str) -> str:
     return verb + "ing"
 
 
+def verb_lemma(word: str, verbs: frozenset[str] = VERBS) -> str | None:
+    """The base form of `word` when it is one of `verbs` or their third person (``jumps`` ->
+    ``jump``), else None."""
+    if word in verbs:
+        return word
+    for suffix, repl in (("ies", "y"), ("es", ""), ("s", "")):
+        if word.endswith(suffix) and word[: -len(suffix)] + repl in verbs:
+            return word[: -len(suffix)] + repl
+    return None
+
+
 def inflect(phrase: str, form: Callable[[str], str]) -> str:
     """Apply ``form`` to every ``^verb`` of a phrase and drop the markers."""
     return re.sub(r"\^([a-z]+)", lambda m: form(m.group(1)), phrase)

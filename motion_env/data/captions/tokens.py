@@ -10,7 +10,7 @@ from __future__ import annotations
 import re
 
 from motion_env.data.captions.bandai import BANDAI_STYLES
-from motion_env.data.captions.grammar import VERBS
+from motion_env.data.captions.grammar import VERBS, verb_lemma
 from motion_env.data.captions.phrases import load
 
 
@@ -33,18 +33,13 @@ _CLOSED_CLASSES = ("DET", "PRON", "ADP", "CCONJ", "SCONJ", "AUX", "PART")
 
 
 def _verb_lemma(word: str) -> str | None:
-    if word in _TAGGER_VERBS:
-        return word
-    for suffix, repl in (("ies", "y"), ("es", ""), ("s", "")):
-        if word.endswith(suffix) and word[: -len(suffix)] + repl in _TAGGER_VERBS:
-            return word[: -len(suffix)] + repl
-    if word.endswith("ing") and len(word) > 4:
+    """:func:`verb_lemma` over the tagger's verbs, and for an -ing form its known stem (else the
+    word less its ending)."""
+    lemma = verb_lemma(word, _TAGGER_VERBS)
+    if lemma is None and word.endswith("ing") and len(word) > 4:
         stem = word[:-3]
-        for cand in (stem, stem + "e", stem[:-1], stem[:-1] + "ie"):
-            if cand in _TAGGER_VERBS:
-                return cand
-        return stem
-    return None
+        return next((c for c in (stem, stem + "e", stem[:-1], stem[:-1] + "ie") if c in _TAGGER_VERBS), stem)
+    return lemma
 
 
 def _noun_lemma(word: str) -> str:
