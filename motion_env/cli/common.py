@@ -141,7 +141,7 @@ def check_device(device: str) -> str:
         if torch.version.cuda is None and getattr(torch.version, "hip", None) is None:
             raise CommandError(
                 f"--device {device}: torch {torch.__version__} has no CUDA here (CPU build): use "
-                "--device cpu, or install a CUDA build of torch (see the README's install section)"
+                "--device cpu, or install a CUDA build of torch (see docs/usage.md, 'Install')"
             )
         if not torch.cuda.is_available():
             raise CommandError(

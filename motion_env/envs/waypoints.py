@@ -110,15 +110,24 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     and its frame has been reached, as the generator's path controller does). The last waypoint is
     never passed: reaching it is the end of the route.
 
+    Between steps, :meth:`set_text` changes the caption, :meth:`set_route` replaces the route (the
+    character follows the new one from its first waypoint), :meth:`set_joint_targets` and
+    :meth:`set_objectives` ask for joint positions and height limits at later frames (a target set at
+    least 10 frames ahead is met exactly; frames already emitted never change), and
+    :meth:`control_summary` says how well the targets were met so far.
+
     ## Action Space
-    By default (``action_mode="normalized"``, the setting for learning) ``Box(-1, 1, (3,), float32)``:
-    (lateral, forward, follow). The first two times ``reach`` metres (3 m) are the point, in the
+    | ``action_mode`` | space | an action is |
+    |---|---|---|
+    | ``"normalized"`` (default, for learning) | ``Box(-1, 1, (3,), float32)`` | (lateral, forward, follow) |
+    | ``"normalized"``, ``follow_action=False`` | ``Box(-1, 1, (2,), float32)`` | (lateral, forward) |
+    | ``"absolute"`` | ``Box(-arena_size, arena_size, (2,), float32)`` | (x, z) in world metres |
+    | ``"relative"`` | ``Box(-3 arena_size, 3 arena_size, (2,), float32)`` | (dx, dz) metres, heading frame |
+
+    In the normalized mode the first two numbers times ``reach`` metres (3 m) are the point, in the
     character's heading frame from its pelvis (lateral + = its left), that it walks to next; a
     positive ``follow`` instead means "follow the route" (it commands the route target, below), so a
-    learned policy can choose the exact route. ``follow_action=False`` drops the switch: (2,).
-    ``action_mode="absolute"``: the point (x, z) in world metres, ``Box(-arena_size, arena_size,
-    (2,))``; ``"relative"``: (dx, dz) metres in the heading frame, ``Box(-3 arena_size, 3 arena_size,
-    (2,))``. What a commanded point does to the route:
+    learned policy can choose the exact route. What a commanded point does to the route:
 
     - a point within ``snap_radius`` (5 cm) of a route waypoint R[j] with j >= k means "follow the
       route from R[j]": the character walks the rest of the route, R[j:], with its timing; k jumps to
@@ -140,18 +149,23 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     numbers, D = 64 for the shipped model), all of the last frame emitted, with heading θ from the
     generator's root (θ = 0 faces +Z; facing (sin θ, cos θ)):
 
-    - ``"root"`` (4,): pelvis world x, z, cos θ, sin θ
-    - ``"target"`` (2,): the route target relative to the pelvis, heading frame (lateral, forward)
-    - ``"route_ahead"`` (6,): the next three waypoints after it, the same way (the last waypoint
-      repeated past the end of the route)
-    - ``"route_state"`` (3,): following the route (1) or on a detour (0); the target is the last
-      waypoint (1/0); waypoints left after the target / 3 (at most 1)
-    - ``"velocity"`` (3,): pelvis velocity in the heading frame (m/s, lateral and forward) and
-      the turn rate dθ/dt (rad/s)
-    - ``"pose"`` (66,): the 22 joints (HumanML3D order) in the heading frame, flattened: x lateral and
-      z forward relative to the pelvis, y the height above the floor
-    - ``"caption"`` (D,): the caption as the path controller reads it (its projection of the
-      sentence embedding): what sets walking versus jogging pace
+    | key | shape | meaning |
+    |---|---|---|
+    | ``"root"`` | (4,) | pelvis world x, z, cos θ, sin θ |
+    | ``"target"`` | (2,) | the route target relative to the pelvis, heading frame (lateral, forward) |
+    | ``"route_ahead"`` | (6,) | the next three waypoints after it, the same way |
+    | ``"route_state"`` | (3,) | following the route; the target is the last waypoint; waypoints left |
+    | ``"velocity"`` | (3,) | pelvis velocity in the heading frame (m/s), turn rate dθ/dt (rad/s) |
+    | ``"pose"`` | (66,) | the 22 joints (HumanML3D order) in the heading frame, flattened |
+    | ``"caption"`` | (D,) | the caption as the path controller reads it |
+
+    - ``"route_ahead"``: the last waypoint repeated past the end of the route.
+    - ``"route_state"``: following the route (1) or on a detour (0); the target is the last
+      waypoint (1/0); waypoints left after the target / 3 (at most 1).
+    - ``"velocity"``: lateral and forward m/s, then the turn rate.
+    - ``"pose"``: x lateral and z forward relative to the pelvis, y the height above the floor.
+    - ``"caption"``: the path controller's projection of the sentence embedding: what sets walking
+      versus jogging pace.
 
     ## Rewards
     Summed over the frames of a step, each term in ``info`` as ``reward_*``:
@@ -167,29 +181,58 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     ## Starting State
     The character starts at ``options["start"]`` (x, z, heading), else at the origin facing +Z (or,
     with ``random_start=True``, at a random free spot and heading in the arena), and follows the route
-    from R[0]. Missing reset options are drawn from ``self.np_random``: the caption from
-    ``text_pool``, a route of 2-4 untimed waypoints (legs of 1.5-3.5 m, turns up to 90 degrees,
-    clear of obstacles). ``reset`` emits the first frame. The same seed and options give the same poses.
+    from R[0]. Missing reset options (``"text"``, ``"waypoints"``, ``"start"``) are drawn from
+    ``self.np_random``: the caption from ``text_pool``, a route of 2-4 untimed waypoints (legs of
+    1.5-3.5 m, turns up to 90 degrees, clear of obstacles). ``options["waypoints"]`` is (K, 2) or
+    (K, 3): x, z in world metres and optionally the frame (20 fps) of each waypoint (NaN: untimed).
+    ``reset`` emits the first frame. The same seed and options give the same poses.
 
     ## Episode End
-    Terminated when the pelvis is within ``arrive_radius`` of the last waypoint after the others
-    were passed or skipped (``terminate_on_arrival=False`` keeps the episode running). Truncated by
-    the ``TimeLimit`` of the registration (150 steps of four frames: 30 s).
+    ### Termination
+    When the pelvis is within ``arrive_radius`` of the last waypoint after the others were passed or
+    skipped (``terminate_on_arrival=False`` keeps the episode running).
+
+    ### Truncation
+    By the ``TimeLimit`` of the registration: 150 steps of four frames (30 s).
 
     ## Arguments
     ```python
-    gym.make("motion_env/Waypoints-v0", generator=None, model_path=None, text_pool=None,
-             action_mode="normalized", frames_per_step=4, arrive_radius=0.5,
-             terminate_on_arrival=True, render_mode=None, obstacles=None, arena_size=10.0,
-             snap_radius=0.05, progress_weight=1.0, arrival_bonus=1.0, collision_penalty=1.0,
-             time_penalty=0.1, reach=3.0, follow_action=True, invalid_action="raise",
-             random_start=False, device="cpu", render_size=(480, 360), render_style="stick",
-             robot=None)
+    gym.make("motion_env/Waypoints-v0", action_mode="absolute", frames_per_step=1, ...)
     ```
-    - ``frames_per_step``: frames (1/20 s each) per step; the default 4 is one generator token, so
-      a new target every step costs no more than one every token.
-    - ``generator``: a :class:`motion_env.MotionGenerator` (None loads the shipped model, or ``model_path``).
-    - ``text_pool``: captions a reset without ``options["text"]`` draws from.
+
+    | Parameter | Type | Default | Description |
+    |---|---|---|---|
+    | ``generator`` | MotionGenerator or None | ``None`` | the generator (None: load ``model_path``) |
+    | ``model_path`` | str or None | ``None`` | weights folder to load (None: the shipped model) |
+    | ``text_pool`` | Sequence[str] or None | ``None`` | captions a reset without a text draws from |
+    | ``action_mode`` | str | ``"normalized"`` | ``"normalized"``, ``"absolute"`` or ``"relative"`` |
+    | ``frames_per_step`` | int | ``4`` | frames (1/20 s each) per step |
+    | ``arrive_radius`` | float | ``0.5`` | metres from a waypoint that count as reaching it |
+    | ``terminate_on_arrival`` | bool | ``True`` | terminate when the last waypoint is reached |
+    | ``render_mode`` | str or None | ``None`` | ``"rgb_array"``: :meth:`render` returns a picture |
+    | ``obstacles`` | array or Sequence or None | ``None`` | circles ``(x, z, radius)`` and/or polygons |
+    | ``arena_size`` | float | ``10.0`` | half-width of the square arena (m) |
+    | ``snap_radius`` | float | ``0.05`` | a command this close to a waypoint follows the route |
+    | ``progress_weight`` | float | ``1.0`` | weight of ``reward_progress`` (per metre) |
+    | ``arrival_bonus`` | float | ``1.0`` | ``reward_arrival`` per waypoint reached |
+    | ``collision_penalty`` | float | ``1.0`` | ``reward_collision`` per frame inside an obstacle |
+    | ``time_penalty`` | float | ``0.1`` | ``reward_time`` per second |
+    | ``reach`` | float | ``3.0`` | metres that a normalized action of 1 reaches |
+    | ``follow_action`` | bool | ``True`` | the normalized action's "follow the route" switch |
+    | ``invalid_action`` | str | ``"raise"`` | NaN/inf actions: ``"raise"`` or ``"hold"`` |
+    | ``random_start`` | bool | ``False`` | start at a random free spot and heading |
+    | ``device`` | str | ``"cpu"`` | torch device of the generator that is loaded |
+    | ``render_size`` | tuple[int, int] | ``(480, 360)`` | (width, height) of a picture, pixels |
+    | ``render_style`` | str | ``"stick"`` | ``"stick"`` or ``"humanoid"`` |
+    | ``robot`` | str or None | ``None`` | ``"unitree_g1"``, ``"booster_t1"`` or a humanoid MJCF path |
+
+    - ``frames_per_step``: the default 4 is one generator token, so a new target every step costs no
+      more than one every token.
+    - ``generator``: a :class:`motion_env.MotionGenerator` (None loads the shipped model, or
+      ``model_path``, on ``device``).
+    - ``text_pool``: None gives six walking and jogging captions.
+    - ``action_mode``, ``reach``, ``follow_action``, ``snap_radius``, ``invalid_action``: see
+      Action Space; ``arena_size`` also bounds random starts, routes and goals.
     - ``obstacles``: circles ``(x, z, radius)`` and/or polygons ``[(x, z), ...]`` in metres
       (:mod:`motion_env.envs.arena`, shared with the A* planner); circles are drawn; all are
       avoided by random routes and penalised by ``reward_collision`` (the generator itself does
@@ -197,24 +240,46 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     - ``render_mode="rgb_array"``: a picture of the character with its trail, route, current
       command (target) and obstacles; ``render_style="stick"`` (a stick figure, matplotlib) or
       ``"humanoid"`` (the MuJoCo humanoid of :mod:`motion_env.replay`, needs offscreen OpenGL:
-      ``MUJOCO_GL=egl`` or ``osmesa``); ``render_size`` = (width, height) in pixels.
+      ``MUJOCO_GL=egl`` or ``osmesa``); ``render_size`` = (width, height) in pixels. The render
+      rate (``metadata["render_fps"]``) is 20 / ``frames_per_step``.
+    - ``robot``: every frame emitted is also retargeted onto that robot (``info["robot_qpos"]``,
+      below) by :class:`motion_env.retarget.StreamRetargeter`: causal, IK warm-started from the
+      previous frame, joint ranges respected, root height from the lowest foot geom; it adds about
+      2-3 ms per frame with the G1 on one CPU core (a step at ``frames_per_step=1``: median 0.2 ms
+      -> 2.9 ms); needs ``pip install "motion-env[robots]"``.
 
-    ``info`` holds ``joints`` (22, 3) world positions of the last frame emitted; ``step_joints``
-    (F, 22, 3) all the frames the step emitted (F = ``frames_per_step``; after a reset the first
-    frame F times, so every entry keeps one shape and vector envs can stack it); ``text``;
-    ``caption_warning`` (str, '' for none: the warning the caption got, once, as a ``UserWarning``,
-    when it was not English, too long or far from every caption the model knows);
-    ``frame`` (frames emitted so far); ``route_length`` K (the route itself, (K, 3) with times,
-    is :attr:`route`); ``route_index`` k; ``route_target`` and ``command`` (world x, z); ``following_route``;
-    ``distance`` (pelvis to route target, m); ``is_success`` (the last waypoint reached); the
-    reward terms and the action flags. With ``robot="unitree_g1"`` (or ``"booster_t1"``, or a
-    humanoid MJCF path; default None) it also holds ``robot_qpos`` (nq,) float32: the last frame
-    emitted retargeted onto that robot, MuJoCo qpos (root x, y, z in MuJoCo's Z-up axes, quaternion
-    w, x, y, z, then the joints), the same shape after reset and every step. It comes from
-    :class:`motion_env.retarget.StreamRetargeter`: causal, IK warm-started from the previous
-    frame, joint ranges respected, root height from the lowest foot geom; it adds about 2-3 ms
-    per frame with the G1 on one CPU core (a step at ``frames_per_step=1``: median 0.2 ms ->
-    2.9 ms); needs ``pip install "motion-env[robots]"``.
+    ## ``info`` keys
+    Returned by ``reset`` and ``step``, with the same keys and shapes (the ``reward_*`` terms: ``step``
+    only), so vector envs can stack them:
+
+    | key | shape | meaning |
+    |---|---|---|
+    | ``joints`` | (22, 3) float32 | world positions of the last frame emitted |
+    | ``step_joints`` | (F, 22, 3) float32 | the F = ``frames_per_step`` frames the step emitted |
+    | ``text`` | str | the caption |
+    | ``caption_warning`` | str | the warning the caption got ('' for none) |
+    | ``frame`` | int | frames emitted so far |
+    | ``route_length`` | int | K, the waypoints of the route (the route itself: :attr:`route`) |
+    | ``route_index`` | int | k, the index of the route target |
+    | ``route_target`` | (2,) float32 | the route target R[k], world x, z |
+    | ``command`` | (2,) float32 | the point the character is walking to, world x, z |
+    | ``following_route`` | bool | following the route (True) or on a detour (False) |
+    | ``distance`` | float | pelvis to the route target (m) |
+    | ``is_success`` | bool | the last waypoint reached |
+    | ``action_clipped`` | bool | the action was outside the Box and was clipped |
+    | ``action_invalid`` | bool | the action had NaN/inf and was not applied (``"hold"``) |
+    | ``reward_progress``, ... | float | the reward terms (Rewards) |
+    | ``robot_qpos`` | (nq,) float32 | with ``robot=``: the last frame emitted on the robot |
+
+    - ``step_joints`` after a reset holds the first frame F times.
+    - ``caption_warning`` is given once as a ``UserWarning`` too, when the caption was not English,
+      too long or far from every caption the model knows.
+    - ``route``: (K, 3) with times (frame index or NaN).
+    - ``robot_qpos``: MuJoCo qpos (root x, y, z in MuJoCo's Z-up axes, quaternion w, x, y, z, then
+      the joints), the same shape after reset and every step.
+
+    ## Version History
+    * v0: Initial version.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": FPS}

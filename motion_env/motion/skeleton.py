@@ -52,7 +52,7 @@ RAW_OFFSETS = np.array(
 )  # fmt: skip
 
 # Canonical bone lengths in metres (length of the bone from PARENTS[j] to j; 0 for the
-# pelvis), measured on shared/data/humanml3d_sample, which is already on HumanML3D's target
+# pelvis), measured on HumanML3D's own sample clips, which is already on HumanML3D's target
 # skeleton (the lengths vary by < 1e-6 m over its frames).
 BONE_LENGTHS = np.array(
     [

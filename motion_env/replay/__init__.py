@@ -16,7 +16,7 @@ What is where:
   :mod:`.tracking`: PD tracking; :mod:`.corruptions`: physically wrong versions of a motion;
 - :mod:`.inputs`: the checks of a motion, a mass, a rate that the public functions make first;
 - :mod:`.robot`: :func:`evaluate_robot`, the checks on a robot's ``qpos`` (its model, e.g.
-  ``../shared/robots/unitree_g1/scene.xml``), measured by :mod:`.robot_kinematic`;
+  ``motion_env/retarget/robots/unitree_g1/scene.xml``), measured by :mod:`.robot_kinematic`;
   :mod:`.judging`: what the humanoid's and the robot's reports share (:func:`format_report`).
 
 A clip shorter than :func:`~motion_env.replay.plausibility.min_frames` (20 frames, 1 s at 20 fps) is

@@ -1,7 +1,7 @@
 """Is a robot trajectory physically plausible? The replay's checks, on a robot's ``qpos``.
 
 >>> from motion_env.replay.robot import evaluate_robot
->>> result = evaluate_robot(qpos, "../shared/robots/unitree_g1/scene.xml", fps=50)
+>>> result = evaluate_robot(qpos, "path/to/unitree_g1/scene.xml", fps=50)   # or an MjModel
 >>> result["plausible"], result["failed"]
 
 :func:`evaluate_robot` measures the trajectory frame by frame (:func:`.robot_kinematic.measure_robot`)

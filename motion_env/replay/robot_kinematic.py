@@ -6,8 +6,9 @@ and ``mj_inverse`` on finite-difference velocities and accelerations (through
 :func:`motion_env.replay.kinematic.root_inverse_dynamics`, the humanoid's own function), and
 returns per-frame arrays. The checks that turn them into a verdict are in :mod:`.robot`.
 
-- The floor is the highest upward-facing plane of the world body (z = 0 in the robot scenes of
-  ``../shared/robots``; a model without a floor gets z = 0). Heights are measured from it.
+- The floor is the highest upward-facing plane of the world body (z = 0 in the robot scenes
+  shipped with :mod:`motion_env.retarget`; a model without a floor gets z = 0). Heights are
+  measured from it.
 - Collision geoms are the robot's geoms with ``contype`` or ``conaffinity`` set. Their surface is
   sampled once (:class:`GeomPoints`: a mesh's convex-hull vertices, as MuJoCo collides them; box
   corners; cylinder rims; sphere and capsule centres with their radius) and the lowest sample is

@@ -42,7 +42,7 @@ from motion_env.studio.state import (
 
 __all__ = ["MAX_CHARACTERS", "StudioSession"]
 
-MAX_CHARACTERS = 16  # a small crowd; the batched stream costs grow with it (see the README)
+MAX_CHARACTERS = 16  # a small crowd; the batched stream costs grow with it (see docs/benchmarks.md, "Studio")
 MAX_HISTORY_FRAMES = 20 * 60 * FPS  # 20 minutes kept per session (about 6 MB per character)
 TRAIL_FRAMES = 60 * FPS  # the trail drawn behind each character: its last minute
 MAX_OBSTACLE_RADIUS = 5.0

@@ -5,6 +5,11 @@ with the dataset's Mean/Std (:class:`~motion_env.models.normalizer.Normalizer`),
 checkpoint stores (``mean``, ``std``) for the generator. Every window of the train clips is
 equally likely. Ends with the val reconstruction error (:func:`evaluate_vqvae`). The loop, the
 learning-rate schedule and the checkpoints are :mod:`motion_env.training.loop`'s.
+
+Fine-tuning the decoder alone (``init`` = a trained VQ-VAE, ``freeze_encoder``): the encoder and
+the codebook stay as they are, so every clip keeps its tokens and a body GPT trained on them stays
+valid, while extra losses on the differences of the decoded joint positions (``vel_weight``,
+``acc_weight``, ``jerk_weight``) teach the decoder to stop rippling at the token rate.
 """
 
 from __future__ import annotations
@@ -16,9 +21,11 @@ from typing import Any
 import numpy as np
 import torch
 
+from motion_env.models.checkpoint import config_from_dict, read_checkpoint
 from motion_env.models.normalizer import Normalizer
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
-from motion_env.motion.checks import check_above, check_at_least
+from motion_env.motion.skeleton import NUM_JOINTS, RIC
+from motion_env.motion.validation import check_above, check_at_least
 from motion_env.training import loop
 from motion_env.training.config import TrainConfig
 
@@ -34,11 +41,64 @@ class VQVAETrainConfig(TrainConfig):
     lr: float = 4e-4  # peak AdamW learning rate (linear warm-up, cosine decay to a tenth)
     window: int = 64  # frames per training window (a multiple of the VQ-VAE's rate)
     save_every: int = 250  # steps between checkpoints (one is also written at the end)
+    init: str | None = None  # VQ-VAE checkpoint (packaged ones too) a fresh run starts from, Mean/Std kept
+    freeze_encoder: bool = False  # train the decoder only: encoder and codebook stay, so do all tokens
+    vel_weight: float = 0.0  # L1 loss on frame-to-frame changes of the root-relative joint positions
+    acc_weight: float = 0.0  # L1 loss on their second differences (acceleration)
+    jerk_weight: float = 0.0  # L1 loss on their third differences (jerk)
+    smooth_joints: str = "all"  # joints those losses apply to: "all", or "upper" (spine, head, arms)
 
     def __post_init__(self) -> None:
         super().__post_init__()
         check_at_least(self, 1, "steps", "batch_size", "window")
         check_above(self, 0, "lr")
+        check_at_least(self, 0, "vel_weight", "acc_weight", "jerk_weight")
+        if self.smooth_joints not in SMOOTH_JOINTS:
+            raise ValueError(
+                f"VQVAETrainConfig.smooth_joints must be one of {tuple(SMOOTH_JOINTS)}, "
+                f"got {self.smooth_joints!r}"
+            )
+        if self.init is not None and not (isinstance(self.init, str) and self.init.strip()):
+            raise ValueError(f"VQVAETrainConfig.init must be a checkpoint path or None, got {self.init!r}")
+        if self.freeze_encoder and self.init is None and not self.resume:
+            # A frozen random encoder and an empty codebook would give every frame the same token.
+            raise ValueError("VQVAETrainConfig.freeze_encoder needs a trained VQ-VAE: set init (or resume)")
+
+
+# The joints the difference losses may cover (the root is not among the RIC channels). "upper":
+# the legs keep the plain reconstruction loss alone, because smoothing them too blurred steps,
+# raising foot skating and floor contacts of walks and runs in the MuJoCo replay.
+SMOOTH_JOINTS = {
+    "all": tuple(range(1, NUM_JOINTS)),
+    "upper": (3, 6, 9, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21),
+}
+
+
+def derivative_losses(recon: torch.Tensor, target: torch.Tensor, config: VQVAETrainConfig) -> dict:
+    """L1 losses on the 1st/2nd/3rd frame differences of the root-relative joint positions.
+
+    Args:
+        recon, target: (B, T, 263) normalised features.
+        config: the weights; a term whose weight is 0 is not computed.
+
+    Returns:
+        {"vel_l1", "acc_l1", "jerk_l1"} (those with a weight) and "smooth": their weighted sum.
+    """
+    # One Std for all RIC channels (HumanML3D's grouped statistics), so differences of the
+    # normalised channels are the joints' differences in one scale. They are far below 1, where
+    # the smooth L1 of the model's own velocity loss is a tiny quadratic: L1 keeps a pull on
+    # the small token-rate ripple.
+    channels = RIC.start + np.array(
+        [(j - 1) * 3 + c for j in SMOOTH_JOINTS[config.smooth_joints] for c in range(3)]
+    )
+    pred, true = recon[..., channels], target[..., channels]
+    terms, total = {}, recon.new_zeros(())
+    for order, name, weight in ((1, "vel_l1", config.vel_weight), (2, "acc_l1", config.acc_weight),
+                                (3, "jerk_l1", config.jerk_weight)):  # fmt: skip
+        if weight > 0:
+            terms[name] = (torch.diff(pred, n=order, dim=1) - torch.diff(true, n=order, dim=1)).abs().mean()
+            total = total + weight * terms[name]
+    return {**terms, "smooth": total}
 
 
 @torch.no_grad()
@@ -84,6 +144,49 @@ def evaluate_vqvae(
     }
 
 
+def _starting_point(
+    out_path: Path, config: VQVAETrainConfig, model_config: VQVAEConfig | None
+) -> tuple[VQVAEConfig, dict[str, Any] | None, dict[str, Any] | None]:
+    """(model config, the checkpoint to resume or None, the ``init`` checkpoint or None)."""
+    init = read_checkpoint(config.init, CHECKPOINT_KIND) if config.init is not None else None
+    if init is not None:
+        stored = config_from_dict(VQVAEConfig, init["config"])
+        if model_config is not None and model_config != stored:
+            raise ValueError(f"{config.init}: holds a VQ-VAE with {stored}, not the given {model_config}")
+        model_config = stored
+    model_config = model_config or VQVAEConfig()
+    ckpt = loop.resume_checkpoint(out_path, CHECKPOINT_KIND, config.resume, model_config)
+    frozen = ckpt is not None and bool(ckpt.get("settings", {}).get("freeze_encoder", False))
+    if ckpt is not None and frozen != config.freeze_encoder:
+        raise ValueError(
+            f"{out_path}: cannot resume with freeze_encoder={config.freeze_encoder}, it was trained "
+            "with the other setting; pass resume=False (--no-resume) or another out_path"
+        )
+    if config.freeze_encoder and ckpt is None and init is None:
+        raise ValueError("freeze_encoder needs a trained VQ-VAE to start from: set init")
+    return model_config, ckpt, init
+
+
+def _normalizer(
+    data_dir: Path, out_path: Path, config: VQVAETrainConfig, ckpt: dict | None, init: dict | None
+) -> Normalizer:
+    """The Mean/Std of the checkpoint continued (the run's own, else ``init``'s), else the dataset's."""
+    # A trained model's input space is defined by the statistics it was trained with.
+    if ckpt is not None and "mean" in ckpt:
+        return Normalizer.from_checkpoint(ckpt, out_path)
+    if init is not None and "mean" in init:
+        return Normalizer.from_checkpoint(init, str(config.init))
+    return loop.load_normalizer(data_dir)
+
+
+def _train_mode(model: VQVAE, freeze_encoder: bool) -> None:
+    model.train()
+    if freeze_encoder:
+        # A quantizer in training mode moves its codes (EMA) and re-seeds unused ones.
+        model.encoder.eval()
+        model.quantizer.eval()
+
+
 def train_vqvae(
     data_dir: str | Path,
     out_path: str | Path,
@@ -96,8 +199,11 @@ def train_vqvae(
         data_dir: HumanML3D-layout dataset (train/val splits, Mean.npy/Std.npy).
         out_path: checkpoint written every ``config.save_every`` steps and at the end (with
             optimizer state and step, so a later call with ``config.resume`` continues).
-        config: training settings (default VQVAETrainConfig()).
-        model_config: model config (default VQVAEConfig()); resuming needs the same.
+        config: training settings (default VQVAETrainConfig()). With ``config.init``, a fresh
+            run starts from that checkpoint's weights and keeps its Mean/Std (those of a
+            resumed run come from the run's own checkpoint); otherwise from the dataset's.
+        model_config: model config (default: that of ``config.init``, else VQVAEConfig());
+            resuming needs the same.
 
     Returns:
         final metrics: "step", the loss terms of the last step ("loss", ...),
@@ -105,11 +211,11 @@ def train_vqvae(
     """
     data_dir, out_path = Path(data_dir), Path(out_path)
     config = config or VQVAETrainConfig()
-    model_config = model_config or VQVAEConfig()
+    model_config, ckpt, init = _starting_point(out_path, config, model_config)
     window, device = config.window, config.device
     if window % model_config.rate or window < model_config.rate:
         raise ValueError(f"window ({window}) must be a positive multiple of rate ({model_config.rate})")
-    normalizer = loop.load_normalizer(data_dir)
+    normalizer = _normalizer(data_dir, out_path, config, ckpt, init)
     train = [c for c in loop.load_split(data_dir, "train") if len(c.features) >= window]
     if not train:
         raise ValueError(f"{data_dir}: no train clip has at least {window} frames")
@@ -120,8 +226,12 @@ def train_vqvae(
 
     torch.manual_seed(config.seed)
     model = VQVAE(model_config).to(device)
-    opt = torch.optim.AdamW(model.parameters(), lr=config.lr, betas=(0.9, 0.99), weight_decay=0.0)
-    ckpt = loop.resume_checkpoint(out_path, CHECKPOINT_KIND, config.resume, model_config)
+    if ckpt is None and init is not None:
+        model.load_state_dict(init["model"])
+    if config.freeze_encoder:
+        model.encoder.requires_grad_(False)  # the quantizer has no parameters, only buffers
+    params = [p for p in model.parameters() if p.requires_grad]
+    opt = torch.optim.AdamW(params, lr=config.lr, betas=(0.9, 0.99), weight_decay=0.0)
     start = loop.restore(ckpt, model, opt)
     rng = np.random.default_rng(
         [config.seed, start]
@@ -134,16 +244,18 @@ def train_vqvae(
         )  # fmt: skip
 
     def train_step(step: int) -> dict[str, float]:
-        model.train()
+        _train_mode(model, config.freeze_encoder)
         idx = rng.choice(len(feats), size=config.batch_size, p=weights)
         offs = (rng.random(config.batch_size) * lengths[idx]).astype(int)
         x = torch.stack([feats[i][o : o + window] for i, o in zip(idx, offs, strict=True)]).to(device)
-        _, _, losses = model(x)
+        recon, _, losses = model(x)
+        extra = derivative_losses(recon, x, config)
+        losses["loss"] = losses["loss"] + extra.pop("smooth")
         opt.zero_grad(set_to_none=True)
         losses["loss"].backward()
-        torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
+        torch.nn.utils.clip_grad_norm_(params, 1.0)
         opt.step()
-        return {k: float(v.detach()) for k, v in losses.items()}
+        return {k: float(v.detach()) for k, v in {**losses, **extra}.items()}
 
     result = loop.run_loop(
         CHECKPOINT_KIND, config, opt, train_step, warmup=min(200, config.steps // 10 + 1), start=start,

@@ -74,6 +74,7 @@ def test_defaults_are_the_trainers_defaults() -> None:
         "seed": 0, "device": "cpu", "resume": True, "log_every": 50, "save_every": 250, "eval_every": 0,
         "max_minutes": math.inf, "progress": True, "steps": 3000, "batch_size": 64, "lr": 4e-4, "window": 64,
         "init": None, "freeze_encoder": False, "vel_weight": 0.0, "acc_weight": 0.0, "jerk_weight": 0.0,
+        "smooth_joints": "all",
     }  # fmt: skip
     assert GPTTrainConfig().to_dict() == {
         "seed": 0, "device": "cpu", "resume": True, "log_every": 50, "save_every": 100, "eval_every": 0,
@@ -189,6 +190,7 @@ def test_every_field_is_an_option(model: str, tmp_path: Path, monkeypatch: pytes
                 "encoder": "clip",
                 "untimed_by": "distance",
                 "target_encoder": "mpnet",
+                "smooth_joints": "upper",
             }[f.name]
             argv += [flag, value]
             expected[f.name] = value

@@ -1,0 +1,257 @@
+#!/usr/bin/env python
+"""How smooth are VQ-VAE reconstructions of held-out takes, next to the takes themselves?
+
+Encodes and decodes every clip of a split with each given VQ-VAE checkpoint, recovers world joints
+from the features (:func:`motion_env.motion.features.features_to_joints`, for the real takes and
+the reconstructions alike) and, per action (the Bandai label of the dataset's ``index.csv``;
+labels with fewer than ``--min-clips`` clips are pooled as "other"), measures:
+
+- ``acc_p99`` / ``jerk_p99``: the 99th percentile over joints and frames of |second / third
+  finite difference| x fps^2 / fps^3 (m/s^2, m/s^3);
+- ``hf_share``: the share of the acceleration energy (Hann-windowed spectrum of each joint axis,
+  summed over the clips) at 5 Hz and above, 5 Hz being the token rate (4 frames per token at
+  20 fps), so a decoder that ripples once per token shows up here; ``token_band`` is the energy in
+  4.5-5.5 Hz per second of motion;
+- ``wrist_flips``: sign changes per second of the wrists' vertical velocity (jitter);
+- ``mpjpe_cm``: mean per-joint error of the reconstruction with the pelvis aligned per frame
+  (``mpjpe_global_cm``: without, so the drift of the integrated root path counts);
+- ``plausible``: for the actions of ``--replay``, the share of clips (of those long enough to
+  judge) that the MuJoCo replay (:func:`motion_env.replay.evaluate`) finds plausible, and the
+  checks that failed.
+
+Reconstruction numbers are also given as ratios to the real takes'. With two or more checkpoints
+it also checks that every clip gets the same tokens from each (it must when only the decoder was
+fine-tuned). Prints a table per checkpoint and writes everything to ``--json``.
+
+    python scripts/analyze_smoothness.py --checkpoints motion_env/weights/vqvae.pt,runs/vq_smooth.pt
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import time
+from collections import defaultdict
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from motion_env.args import parse_dataclass, write_json
+from motion_env.data.dataset import read_split
+from motion_env.models.checkpoint import load_checkpoint
+from motion_env.models.normalizer import Normalizer
+from motion_env.models.vqvae import VQVAE, VQVAEConfig
+from motion_env.motion.features import features_to_joints
+from motion_env.motion.skeleton import FPS, JOINT_INDEX
+
+WRISTS = (JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"])
+HF_CUTOFF_HZ = 5.0
+TOKEN_BAND_HZ = (4.5, 5.5)
+
+
+@dataclass
+class Args:
+    data: str = "data/mocap"  # HumanML3D-layout dataset with index.csv
+    checkpoints: str = "motion_env/weights/vqvae.pt"  # comma-separated VQ-VAE checkpoints
+    split: str = "val"  # the split whose clips are measured
+    min_clips: int = 10  # labels with fewer clips are pooled as "other"
+    replay: str = "run,walk"  # comma-separated actions whose clips are replayed in MuJoCo ("": none)
+    threads: int = 1  # torch CPU threads
+    json: str = "runs/smoothness.json"  # where the numbers go
+
+
+# --- measures on one clip's world joints (T, 22, 3) ----------------------------------------
+
+
+def _diff_norms(joints: np.ndarray, order: int) -> np.ndarray:
+    """|order-th finite difference| x fps^order per joint and frame (flattened)."""
+    d = np.diff(joints.astype(np.float64), n=order, axis=0) * FPS**order
+    return np.linalg.norm(d, axis=-1).ravel()
+
+
+def _acc_spectrum(joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(frequencies, power per frequency summed over joint axes) of the acceleration."""
+    acc = np.diff(joints.astype(np.float64), n=2, axis=0).reshape(len(joints) - 2, -1) * FPS**2
+    window = np.hanning(len(acc))[:, None]
+    power = np.abs(np.fft.rfft(acc * window, axis=0)) ** 2
+    return np.fft.rfftfreq(len(acc), 1.0 / FPS), power.sum(axis=1)
+
+
+def _wrist_flips(joints: np.ndarray) -> int:
+    vy = np.diff(joints[:, WRISTS, 1], axis=0)
+    return int((np.sign(vy[1:]) * np.sign(vy[:-1]) < 0).sum())
+
+
+class Stats:
+    """Measures pooled over the clips of one group (one action, real or reconstructed)."""
+
+    def __init__(self) -> None:
+        self.acc: list[np.ndarray] = []
+        self.jerk: list[np.ndarray] = []
+        self.energy = self.hf = self.band = 0.0
+        self.flips, self.seconds, self.clips = 0, 0.0, 0
+        self.err: list[float] = []
+        self.global_err: list[float] = []
+
+    def add(self, joints: np.ndarray, truth: np.ndarray | None = None) -> None:
+        self.clips += 1
+        self.acc.append(_diff_norms(joints, 2))
+        self.jerk.append(_diff_norms(joints, 3))
+        freq, power = _acc_spectrum(joints)
+        half_bin = 0.5 * (freq[1] - freq[0])
+        self.energy += float(power.sum())
+        self.hf += float(power[freq >= HF_CUTOFF_HZ - half_bin].sum())
+        self.band += float(power[(freq >= TOKEN_BAND_HZ[0]) & (freq <= TOKEN_BAND_HZ[1])].sum())
+        self.flips += _wrist_flips(joints)
+        self.seconds += len(joints) / FPS
+        if truth is not None:
+            local = (joints - joints[:, :1]) - (truth - truth[:, :1])
+            self.err.append(float(np.linalg.norm(local, axis=-1)[:, 1:].mean()))
+            self.global_err.append(float(np.linalg.norm(joints - truth, axis=-1).mean()))
+
+    def summary(self) -> dict[str, float]:
+        out = {
+            "clips": float(self.clips),
+            "acc_p99": float(np.percentile(np.concatenate(self.acc), 99)),
+            "jerk_p99": float(np.percentile(np.concatenate(self.jerk), 99)),
+            "hf_share": self.hf / max(self.energy, 1e-12),
+            "token_band": self.band / max(self.seconds, 1e-12),
+            "wrist_flips": self.flips / max(self.seconds, 1e-12),
+        }
+        if self.err:
+            out["mpjpe_cm"] = float(np.mean(self.err) * 100)
+            out["mpjpe_global_cm"] = float(np.mean(self.global_err) * 100)
+        return out
+
+
+# --- the split, the checkpoints ------------------------------------------------------------
+
+
+def clip_groups(data: Path, split: str, min_clips: int) -> tuple[list[Any], list[str]]:
+    """The whole clips of `split` (at least 4 frames) and each one's group: its label or "other"."""
+    with (data / "index.csv").open(newline="", encoding="utf-8") as f:
+        labels = {row["name"]: row["label"] or "other" for row in csv.DictReader(f)}
+    clips = [c for c in read_split(data, split) if ":" not in c.name and c.num_frames >= 8]
+    names = [labels.get(c.name, "other") for c in clips]
+    counts = defaultdict(int)
+    for name in names:
+        counts[name] += 1
+    return clips, [n if counts[n] >= min_clips else "other" for n in names]
+
+
+@torch.no_grad()
+def reconstruct(path: str, clips: list[Any]) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Each clip's codes and reconstructed world joints, through the VQ-VAE at `path`."""
+    model, ckpt = load_checkpoint(path, "vqvae", VQVAEConfig, VQVAE)
+    normalizer = Normalizer.from_checkpoint(ckpt, path)
+    codes, joints = [], []
+    for clip in clips:
+        n = clip.num_frames // model.rate * model.rate
+        x = torch.from_numpy(normalizer.normalize(clip.features[:n]))[None]  # (1, n, 263)
+        c = model.encode(x)
+        codes.append(c[0].numpy())
+        joints.append(features_to_joints(normalizer.denormalize(model.decode(c)[0])))
+    return codes, joints
+
+
+def measure(
+    clips: list[Any], groups: list[str], recon: list[np.ndarray] | None
+) -> dict[str, dict[str, float]]:
+    """group -> summary of the real takes (recon None) or of the reconstructions, plus "all"."""
+    stats: dict[str, Stats] = defaultdict(Stats)
+    for i, (clip, group) in enumerate(zip(clips, groups, strict=True)):
+        truth = features_to_joints(clip.features)
+        joints = truth if recon is None else recon[i]  # a reconstruction stops at a whole token
+        for key in (group, "all"):
+            stats[key].add(joints, None if recon is None else truth[: len(joints)])
+    return {k: s.summary() for k, s in sorted(stats.items())}
+
+
+def replay(joints: list[np.ndarray], groups: list[str], actions: set[str]) -> dict[str, dict[str, Any]]:
+    """action -> {"judged", "plausible" (share), "failed" (check -> clips), "mean_values" (check ->
+    mean measured value)} of the MuJoCo replay."""
+    from motion_env.motion.types import Motion
+    from motion_env.replay import evaluate
+
+    out: dict[str, dict[str, Any]] = {}
+    for j, group in zip(joints, groups, strict=True):
+        if group not in actions:
+            continue
+        verdict = evaluate(Motion(joints=j, fps=FPS))
+        entry = out.setdefault(group, {"judged": 0, "passed": 0, "failed": defaultdict(int)})
+        entry.setdefault("values", defaultdict(list))
+        if verdict["judged"]:
+            entry["judged"] += 1
+            entry["passed"] += int(bool(verdict["plausible"]))
+            for check in verdict["failed"]:
+                entry["failed"][check] += 1
+            for check, result in verdict["checks"].items():
+                entry["values"][check].append(result["value"])
+    for entry in out.values():
+        entry["plausible"] = entry.pop("passed") / max(entry["judged"], 1)
+        entry["failed"] = dict(entry["failed"])
+        # A pass rate moves by whole clips; the mean measured values show smaller changes.
+        entry["mean_values"] = {k: float(np.mean(v)) for k, v in entry.pop("values").items()}
+    return out
+
+
+def print_replay(name: str, verdicts: dict[str, dict[str, Any]]) -> None:
+    for group, v in sorted(verdicts.items()):
+        print(f"  {name} {group}: plausible {v['plausible']:.2f} of {v['judged']}, failed {v['failed']}")
+        print("    mean values: " + ", ".join(f"{k} {x:.4g}" for k, x in v["mean_values"].items()))
+
+
+def ratios(recon: dict[str, dict[str, float]], real: dict[str, dict[str, float]]) -> dict[str, dict]:
+    keys = ("acc_p99", "jerk_p99", "hf_share", "token_band", "wrist_flips")
+    return {g: {k: recon[g][k] / max(real[g][k], 1e-12) for k in keys} for g in recon}
+
+
+def print_table(name: str, real: dict, recon: dict, ratio: dict) -> None:
+    print(f"\n{name}: reconstruction / real takes (real values in brackets)")
+    head = f"{'action':<22}{'clips':>6}{'MPJPE cm':>9}{'global':>7}{'acc p99':>16}{'jerk p99':>18}"
+    print(head + f"{'HF>=5Hz share':>20}{'5Hz band':>10}{'wrist flips/s':>20}")
+    for g in recon:
+        r, q, t = recon[g], ratio[g], real[g]
+        print(
+            f"{g:<22}{int(r['clips']):>6}{r['mpjpe_cm']:>9.2f}{r['mpjpe_global_cm']:>7.1f}"
+            f"{q['acc_p99']:>7.2f}x ({t['acc_p99']:>5.1f}){q['jerk_p99']:>8.2f}x ({t['jerk_p99']:>6.0f})"
+            f"{r['hf_share']:>9.3f} ({t['hf_share']:.3f}){q['token_band']:>9.2f}x"
+            f"{r['wrist_flips']:>10.2f} ({t['wrist_flips']:>5.2f})"
+        )
+
+
+def main() -> None:
+    args = parse_dataclass(Args, description=__doc__)
+    torch.set_num_threads(args.threads)
+    t0 = time.perf_counter()
+    clips, groups = clip_groups(Path(args.data), args.split, args.min_clips)
+    real = measure(clips, groups, None)
+    actions = set(filter(None, (a.strip() for a in args.replay.split(","))))
+    real_joints = [features_to_joints(c.features) for c in clips]
+    out: dict[str, Any] = {"args": asdict(args), "real": real, "checkpoints": {}}
+    out["real_replay"] = replay(real_joints, groups, actions)
+    print_replay("real takes", out["real_replay"])
+    first_codes = None
+    for path in filter(None, (p.strip() for p in args.checkpoints.split(","))):
+        codes, joints = reconstruct(path, clips)
+        recon = measure(clips, groups, joints)
+        ratio = ratios(recon, real)
+        entry: dict[str, Any] = {"recon": recon, "ratio": ratio, "replay": replay(joints, groups, actions)}
+        if first_codes is None:
+            first_codes = codes
+        else:
+            same = sum(np.array_equal(a, b) for a, b in zip(first_codes, codes, strict=True))
+            entry["clips_with_same_tokens"] = f"{same}/{len(codes)}"
+            print(f"\n{path}: {same}/{len(codes)} clips get the same tokens as the first checkpoint")
+        out["checkpoints"][path] = entry
+        print_table(path, real, recon, ratio)
+        print_replay("reconstructions", entry["replay"])
+    out["seconds"] = time.perf_counter() - t0
+    write_json(args.json, json.loads(json.dumps(out)))
+
+
+if __name__ == "__main__":
+    main()
