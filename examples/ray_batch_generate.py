@@ -9,11 +9,13 @@ generator once and turns a batch into clips with one `MotionGenerator.generate_b
 summary). Every clip is written as `clips/clip_NNNNN.npz` (`Motion.save`), and `summary.json`
 lists them with the run's timing.
 
-Past one machine: start a Ray cluster (`ray start --head` here, `ray start --address=HEAD:6379` on
-the others, each with this package installed), put --out on storage that every machine sees, and
-run with `--ray-address auto`; the actors are then spread over the machines.
+Past one machine (recipe: docs/scaling.md): Ray 2.60 joins nodes with token authentication. On
+the head, `export RAY_AUTH_MODE=token; ray get-auth-token --generate; ray start --head`; on each
+other machine (this package installed), `export RAY_AUTH_MODE=token RAY_AUTH_TOKEN=<head's token>;
+ray start --address=HEAD:6379`; put --out on storage that every machine sees and run this with
+RAY_AUTH_MODE=token and `--ray-address auto`; the actors are then spread over the machines.
 
-Needs the optional extra: pip install -c constraints.txt "motion-env[ray]"
+Needs the optional extra, in a venv of its own: pip install -c constraints.txt "motion-env[ray]" pytest
 
     python examples/ray_batch_generate.py --out runs/ray_batch --num-clips 64
     python examples/ray_batch_generate.py --random-model --num-clips 6 --batch-size 2 \\
@@ -50,7 +52,7 @@ class Args(ExampleArgs):
     num_frames: int = 200  # frames per clip (20 fps)
     batch_size: int = 8  # rows per generate_batch call
     num_actors: int = 2  # generator actors (each loads the model once)
-    ray_address: str = ""  # "" = start Ray on this machine; "auto" = join the running Ray cluster
+    ray_address: str = ""  # "": Ray here; "auto": join the cluster (RAY_AUTH_MODE=token, docs/scaling.md)
 
 
 def random_table(args: Args) -> list[dict[str, Any]]:

@@ -11,12 +11,14 @@ runners; every iteration prints the mean episode return and success rate. The ex
 RLlib checkpoint, walks one fixed route with the trained policy (deterministic) and writes that
 rollout as a video, a top-down plot and a .npz, next to a random agent's return.
 
-Past one machine: start a Ray cluster (`ray start --head` here, `ray start --address=HEAD:6379` on
-the others, each with this package installed) and run with `--ray-address auto`; env runners are
-then placed across the machines.
+Past one machine (recipe: docs/scaling.md): Ray 2.60 joins nodes with token authentication. On
+the head, `export RAY_AUTH_MODE=token; ray get-auth-token --generate; ray start --head`; on each
+other machine (this package installed), `export RAY_AUTH_MODE=token RAY_AUTH_TOKEN=<head's token>;
+ray start --address=HEAD:6379`; then run this with RAY_AUTH_MODE=token and `--ray-address auto`;
+env runners are then placed across the machines.
 
 Needs the optional extra (a separate venv is best: Ray pins its own gymnasium, 1.2.2 for Ray 2.60):
-pip install -c constraints.txt "motion-env[ray]"
+pip install -c constraints.txt "motion-env[ray]" pytest
 
     python examples/rllib_ppo.py --out runs/rllib_ppo
     python examples/rllib_ppo.py --random-model --iterations 1 --num-envs-per-env-runner 2 \\
@@ -55,7 +57,7 @@ class Args(ExampleArgs):
     eval_route: str = "0,3;3,5;5,2"  # the evaluation route "x,z;..." (world metres)
     text: str = "a person walks forward"  # caption of the evaluation rollout
     sample_timeout_s: float = 600.0  # how long to wait for a runner's share of a batch (RLlib's default: 60)
-    ray_address: str = ""  # "" = start Ray on this machine; "auto" = join the running Ray cluster
+    ray_address: str = ""  # "": Ray here; "auto": join the cluster (RAY_AUTH_MODE=token, docs/scaling.md)
 
 
 def log_success(episode: Any, metrics_logger: Any, **kwargs: Any) -> None:

@@ -79,7 +79,8 @@ def test_generator_and_stream_read_sparse_as_dense() -> None:
 
 def test_unreachable_targets_warn_naming_the_frames() -> None:
     high = JointTargets.from_entries([(12, "head", (0.0, 2.4, 1.0)), (30, "right_wrist", (0.0, 2.0, 1.0))])
-    with pytest.warns(UserWarning, match=r"head at frame 12 \(y = 2.40 m\) is above what that joint can reach"):
+    match = r"head at frame 12 \(y = 2.40 m\) is above what that joint can reach"
+    with pytest.warns(UserWarning, match=match):
         check_joint_targets(high, 40)
     low = JointTargets.from_entries([(5, "left_wrist", (0.0, -0.3, 0.0))])
     with pytest.warns(UserWarning, match="left_wrist at frame 5 .* below the floor"):

@@ -17,6 +17,9 @@ Route semantics (the contract documented in :class:`motion_env.envs.WaypointsEnv
   route waypoint R[j], j >= k, means "follow the route from R[j]" (k jumps to j, the generator gets
   R[j:] with their times); any other point is a detour: the character walks to that point and
   stays there; the route waits (k only moves when the pelvis passes R[k]).
+
+:func:`build_characters` checks what an environment is made of (captions, obstacles, generator)
+once and builds its batch.
 """
 
 from __future__ import annotations
@@ -27,8 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from motion_env.envs.arena import Obstacle, obstacle_distance
-from motion_env.envs.config import OBS_BOUNDS, ROUTE_AHEAD, EnvConfig
+from motion_env.envs.arena import Obstacle, obstacle_distance, validate_obstacles
+from motion_env.envs.config import OBS_BOUNDS, ROUTE_AHEAD, EnvConfig, validate_text_pool
 from motion_env.motion.kinematics import from_heading_frame, to_heading_frame
 from motion_env.motion.skeleton import FPS, NUM_JOINTS
 from motion_env.motion.trajectory import MAX_COORDINATE, validate_waypoints, wrap_angle
@@ -335,3 +338,31 @@ class CharacterBatch:
             "reward_collision": -c.collision_penalty * self.collisions,
             "reward_time": -c.time_penalty * self.frames / FPS,
         }
+
+
+def make_generator(generator: Any | None, model_path: str | None, device: str) -> Any:
+    """The given generator, or the shipped (or `model_path`) model loaded on `device`."""
+    if generator is not None:
+        if not callable(getattr(generator, "stream", None)):
+            raise TypeError(
+                f"generator must have a stream(...) method (a MotionGenerator), got {type(generator)}"
+            )
+        return generator
+    from motion_env.generation.generator import MotionGenerator
+
+    return MotionGenerator.from_pretrained(model_path, device=device)
+
+
+def build_characters(
+    config: EnvConfig,
+    text_pool: Sequence[str] | None,
+    obstacles: np.ndarray | Sequence | None,
+    generator: Any | None,
+    model_path: str | None,
+    device: str,
+) -> tuple[tuple[str, ...], list[Obstacle], Any, CharacterBatch]:
+    """What Waypoints-v0 and its vector env are made of, checked once: the caption pool, the
+    obstacles, the generator and the batch of characters it streams."""
+    pool = validate_text_pool(text_pool)
+    checked = validate_obstacles(obstacles)
+    return pool, checked, make_generator(generator, model_path, device), CharacterBatch(config, checked)

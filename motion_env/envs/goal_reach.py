@@ -11,8 +11,9 @@ from gymnasium import spaces
 from motion_env.envs.arena import Obstacle, obstacle_distance
 from motion_env.envs.config import EnvConfig
 from motion_env.envs.core import CharacterBatch
+from motion_env.envs.spaces import observation_space
 from motion_env.envs.vector import WaypointsVectorEnv
-from motion_env.envs.waypoints import WaypointsEnv, observation_space
+from motion_env.envs.waypoints import WaypointsEnv
 from motion_env.motion.trajectory import MAX_COORDINATE
 
 REWARD_TYPES = ("sparse", "dense")

@@ -17,8 +17,9 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from motion_env.envs.config import EnvConfig, check_actions, validate_start
+from motion_env.envs.core import build_characters
 from motion_env.envs.episodes import sample_route, sample_start
-from motion_env.envs.waypoints import action_space, build_characters, caption_size, observation_space
+from motion_env.envs.spaces import action_space, caption_size, observation_space
 from motion_env.generation.request import check_text
 from motion_env.joint_targets import JointTargets
 from motion_env.motion.skeleton import FPS

@@ -7,91 +7,18 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 
-from motion_env.envs.arena import Obstacle, circles, validate_obstacles
-from motion_env.envs.config import (
-    OBS_BOUNDS,
-    ROUTE_AHEAD,
-    EnvConfig,
-    check_actions,
-    validate_start,
-    validate_text_pool,
-)
-from motion_env.envs.core import CharacterBatch
+from motion_env.envs.arena import circles
+from motion_env.envs.config import EnvConfig, check_actions, validate_start
+from motion_env.envs.core import build_characters
 from motion_env.envs.episodes import sample_route, sample_start
+from motion_env.envs.spaces import action_space, caption_size, observation_space
 from motion_env.generation.request import check_text
 from motion_env.joint_targets import JointTargets
-from motion_env.motion.skeleton import FPS, NUM_JOINTS
-from motion_env.motion.trajectory import MAX_COORDINATE, validate_waypoints
+from motion_env.motion.skeleton import FPS
+from motion_env.motion.trajectory import validate_waypoints
 
 RENDER_STYLES = ("stick", "humanoid")
-
-
-def make_generator(generator: Any | None, model_path: str | None, device: str) -> Any:
-    """The given generator, or the shipped (or `model_path`) model loaded on `device`."""
-    if generator is not None:
-        if not callable(getattr(generator, "stream", None)):
-            raise TypeError(
-                f"generator must have a stream(...) method (a MotionGenerator), got {type(generator)}"
-            )
-        return generator
-    from motion_env.generation.generator import MotionGenerator
-
-    return MotionGenerator.from_pretrained(model_path, device=device)
-
-
-def build_characters(
-    config: EnvConfig,
-    text_pool: Sequence[str] | None,
-    obstacles: np.ndarray | Sequence | None,
-    generator: Any | None,
-    model_path: str | None,
-    device: str,
-) -> tuple[tuple[str, ...], list[Obstacle], Any, CharacterBatch]:
-    """What Waypoints-v0 and its vector env are made of, checked once: the caption pool, the
-    obstacles, the generator and the batch of characters it streams."""
-    pool = validate_text_pool(text_pool)
-    checked = validate_obstacles(obstacles)
-    return pool, checked, make_generator(generator, model_path, device), CharacterBatch(config, checked)
-
-
-def caption_size(generator: Any) -> int:
-    """Width of the observation's "caption": the path controller's caption projection."""
-    return int(generator.controller.config.text_proj)
-
-
-def observation_space(caption_dim: int) -> spaces.Dict:
-    """The Dict observation space of one character (see :class:`WaypointsEnv`).
-
-    Every bound is finite (what the env checkers ask for); :meth:`CharacterBatch.observations`
-    clips into them.
-    """
-
-    def box(bound: float, size: int) -> spaces.Box:
-        return spaces.Box(-np.float32(bound), np.float32(bound), (size,), np.float32)
-
-    return spaces.Dict(
-        {
-            "root": spaces.Box(
-                low=np.array([-MAX_COORDINATE, -MAX_COORDINATE, -1.0, -1.0], np.float32),
-                high=np.array([MAX_COORDINATE, MAX_COORDINATE, 1.0, 1.0], np.float32),
-                dtype=np.float32,
-            ),
-            "target": box(OBS_BOUNDS["target"], 2),
-            "route_ahead": box(OBS_BOUNDS["route_ahead"], ROUTE_AHEAD * 2),
-            "route_state": spaces.Box(0.0, 1.0, (3,), np.float32),
-            "velocity": box(OBS_BOUNDS["velocity"], 3),
-            "pose": box(OBS_BOUNDS["pose"], NUM_JOINTS * 3),
-            "caption": box(OBS_BOUNDS["caption"], caption_dim),
-        }
-    )
-
-
-def action_space(config: EnvConfig) -> spaces.Box:
-    """The action Box of one character for `config` (see :class:`WaypointsEnv`)."""
-    bound = np.float32(config.action_bound)
-    return spaces.Box(-bound, bound, (config.action_size,), np.float32)
 
 
 class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):

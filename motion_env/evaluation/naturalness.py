@@ -4,8 +4,9 @@ Each action of the split with at least ``min_takes`` takes (mirrors included; th
 dataset's ``index.csv``) gives up to ``per_action`` of its takes (seeded choice), each made again:
 
 - stage ``generated``: by the generator from the take's own first caption (the caption
-  templates' wording of its labels), from the take's start, at its length, along its root path:
-  timed waypoints every second where the take travels (:func:`travel_waypoints`);
+  templates' wording of its labels), from the take's start, along its root path continued one
+  second past its end (:func:`extended_path`: the takes are cuts of longer motion), with timed
+  waypoints every second where the take travels (:func:`travel_waypoints`), cut to its length;
 - stage ``vqvae``: the take's features encoded and decoded by the VQ-VAE alone, the decoded body
   placed on the take's real root path and its feet pinned as the generator does (stages 4-6 of
   :mod:`motion_env.generation.pipeline`): what the tokenizer alone changes.
@@ -55,6 +56,7 @@ __all__ = [
     "NaturalTake",
     "evaluate_naturalness",
     "naturalness_takes",
+    "extended_path",
     "travel_waypoints",
 ]
 
@@ -159,12 +161,26 @@ def travel_waypoints(path: np.ndarray, every: int = FPS) -> np.ndarray | None:
     return np.array(kept, np.float32) if kept else None
 
 
+def extended_path(path: np.ndarray, frames: int = FPS) -> np.ndarray:
+    """(T, 3) root path continued `frames` past its end at its last second's mean velocity.
+
+    The takes are cuts of longer motion: a run goes on running at the take's last frame. Asked to
+    be at the last frame's spot then, the path controller would stop there (a route's last
+    waypoint is where the character stays); along the continued path it passes through, and the
+    clip is cut back to the take's length.
+    """
+    back = min(FPS, len(path) - 1)
+    velocity = (path[-1] - path[-1 - back]) / max(back, 1)
+    velocity[2] = 0.0  # the heading stays: a turning take is judged on the turn it made
+    return np.concatenate([path, path[-1] + velocity * np.arange(1, frames + 1)[:, None]])
+
+
 def _generated(gen: Any, take: NaturalTake, seed: int) -> np.ndarray:
-    path = root_path_from_joints(take.joints)
-    motion = gen.generate(
-        take.text, travel_waypoints(path), len(take.joints), seed=seed, start=path[0], infeasible="warn"
-    )
-    return motion.joints
+    t_len = len(take.joints)
+    path = extended_path(root_path_from_joints(take.joints))
+    waypoints = travel_waypoints(path)
+    motion = gen.generate(take.text, waypoints, len(path), seed=seed, start=path[0], infeasible="warn")
+    return motion.joints[:t_len]
 
 
 def _vqvae(gen: Any, take: NaturalTake) -> np.ndarray:

@@ -3,8 +3,7 @@
 The refinement (:mod:`motion_env.generation.refine`) brings the generated body close to its
 targets by optimising what the generator produces; this module finishes the job exactly:
 
-- :func:`implied_route`: timed waypoints for the path controller where the targets say the body
-  must be (used when the request has targets but no route);
+- :func:`implied_route`: timed waypoints where targets put the body (for targets without a route);
 - :func:`bend_root`: the root path bent (as the waypoint snap bends it) so that the pelvis passes
   its targets exactly and the body's other targeted joints line up horizontally;
 - :func:`detour`: the root path bent around :class:`~motion_env.objectives.KeepOut` cylinders and
@@ -14,11 +13,10 @@ targets by optimising what the generator produces; this module finishes the job 
   pelvis - spine3 - head), legs (ankle and toe targets; feet planted elsewhere stay planted),
   arms (wrist targets). Every bone keeps its length.
 
-A correction found at a targeted frame reaches the neighbouring frames through
-:func:`residual_field`: interpolated linearly between targets up to GAP frames apart, faded in and
-out over FADE frames (a smoothstep) elsewhere, and held constant while a foot is planted, so
-nothing pops and a planted foot does not slide. :func:`causal_field` is the stream's version: it
-needs no frame after the one being corrected.
+A correction at a targeted frame reaches its neighbours through :func:`residual_field`: linear
+between targets up to GAP frames apart, faded in and out over FADE frames (a smoothstep) elsewhere,
+and held constant while a foot is planted, so nothing pops and a planted foot does not slide.
+:func:`causal_field` is the stream's version: it needs no frame after the one being corrected.
 """
 
 from __future__ import annotations

@@ -34,13 +34,14 @@ from motion_env.generation.request import (
     check_texts,
 )
 from motion_env.models.caption_adapter import CaptionAdapter
-from motion_env.models.checkpoint import check_text_encoder, load_checkpoint, save_checkpoint
+from motion_env.models.checkpoint import check_text_encoder, load_checkpoint, save_checkpoint, training_record
 from motion_env.models.controller import ControllerConfig, PathController
 from motion_env.models.gpt import GPTConfig, TokenGPT
 from motion_env.models.normalizer import Normalizer
 from motion_env.models.sampling import SamplingConfig
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
-from motion_env.motion.skeleton import FEATURE_DIM, FPS, NUM_JOINTS
+from motion_env.motion.features import rest_pose_features
+from motion_env.motion.skeleton import FEATURE_DIM, FPS
 from motion_env.motion.types import Motion
 from motion_env.text.vocabulary import load_vocabulary
 
@@ -59,33 +60,6 @@ PIPELINE_PARTS = frozenset(
 )
 # `from_pretrained(RANDOM_MODEL)` gives the untrained test model (:meth:`MotionGenerator.random`).
 RANDOM_MODEL = "random"
-
-
-def _rest_pose_features() -> np.ndarray:
-    """(263,) features of the canonical skeleton standing in its rest pose (the random model's mean)."""
-    from motion_env.motion.features import joints_to_features
-    from motion_env.motion.kinematics import bone_offsets, forward_kinematics
-
-    rots = np.zeros((2, NUM_JOINTS, 4))
-    rots[..., 0] = 1.0  # identity quaternions (w, x, y, z)
-    height = -float(bone_offsets()[[2, 5, 8], 1].sum())  # hip + knee + ankle drop of the right leg
-    joints = forward_kinematics(np.array([[0.0, height, 0.0]] * 2), rots)
-    return joints_to_features(joints)[0].astype(np.float32)
-
-
-def _training_record(ckpt: dict[str, Any]) -> dict[str, Any]:
-    """What a checkpoint says about its training (a training checkpoint's own keys, or the record
-    a packaged one carries), as plain numbers and strings."""
-    if isinstance(ckpt.get("training"), dict):
-        return ckpt["training"]
-    record: dict[str, Any] = {}
-    for key in ("step", "metrics", "settings", "vqvae"):
-        value = ckpt.get(key)
-        if isinstance(value, int | float | str):
-            record[key] = value
-        elif isinstance(value, dict):
-            record[key] = {str(k): v for k, v in value.items() if isinstance(v, int | float | str)}
-    return record
 
 
 class MotionGenerator:
@@ -207,9 +181,9 @@ class MotionGenerator:
             untrained=untrained, device=device, name=str(folder), caption_adapter=adapter,
         )  # fmt: skip
         for kind, ckpt in (("vqvae", vq_ckpt), ("gpt", gpt_ckpt), ("controller", ctrl_ckpt)):
-            gen.training_info[kind] = _training_record(ckpt)
+            gen.training_info[kind] = training_record(ckpt)
         if adapter_ckpt is not None:
-            gen.training_info["caption_adapter"] = _training_record(adapter_ckpt)
+            gen.training_info["caption_adapter"] = training_record(adapter_ckpt)
         gen.pipeline.vocabulary = load_vocabulary(folder)
         return gen
 
@@ -236,7 +210,7 @@ class MotionGenerator:
         # The controller starts at "stand still" (zero output layer); let the random one drift.
         torch.nn.init.normal_(ctrl.out[-1].weight, std=0.1)
         torch.nn.init.normal_(ctrl.out[-1].bias, std=0.1)
-        mean = _rest_pose_features()
+        mean = rest_pose_features()
         std = np.full(FEATURE_DIM, 0.02, np.float32)
         return cls(
             vq, gpt, ctrl, mean, std, text_encoder=text_encoder, untrained=True, device=device, name="random"
@@ -314,6 +288,18 @@ class MotionGenerator:
     @caption_adapter.setter
     def caption_adapter(self, adapter: CaptionAdapter | None) -> None:
         self.pipeline.caption_adapter = adapter
+
+    @property
+    def physics(self) -> bool:
+        """Whether stage 6 makes flight and contact consistent (:mod:`motion_env.generation.physics`;
+        assignable, on by default). Streams take the setting of the moment they start."""
+        return self.pipeline.physics
+
+    @physics.setter
+    def physics(self, value: bool) -> None:
+        if not isinstance(value, bool):
+            raise TypeError(f"physics must be True or False, got {value!r}")
+        self.pipeline.physics = value
 
     @property
     def sampling(self) -> SamplingConfig:
@@ -459,7 +445,10 @@ class MotionGenerator:
         """
         req = check_batch_request(texts, waypoints, num_frames, seed, starts, infeasible)
         emb = self.pipeline.encode_text(req.texts)
-        paths = self.pipeline.clip_paths(emb, req, snap)
+        if snap:
+            _, paths = self.pipeline.plan_paths(emb, req)
+        else:
+            paths = self.pipeline.clip_paths(emb, req, snap=False)
         return paths[:, : req.num_frames]
 
     def _meta(self, seed: int, row: int) -> dict[str, str]:

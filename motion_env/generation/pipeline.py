@@ -22,8 +22,11 @@ stage methods causally, one token at a time, in the same order):
    normalisation);
 5. **compose** (:meth:`Pipeline.compose`): the decoded body, relative to its root, is placed on
    the root path and rebuilt on the skeleton's bone lengths (decoded legs come out up to 9 cm short);
-6. **feet** (:class:`~motion_env.generation.feet.FootPinner`): feet the decoder marks as planted
-   are pinned (:meth:`Pipeline.place_clip` runs 5 and 6);
+6. **feet and physics** (:class:`~motion_env.generation.feet.FootPinner`,
+   :mod:`motion_env.generation.physics`): feet the decoder marks as planted are pinned; then, with
+   ``Pipeline.physics`` (on by default), the body's height is planned so that its centre of mass
+   falls with gravity in flight and takes off and lands within what legs can push, planted feet
+   stand on the floor and no joint goes below it (:meth:`Pipeline.place_clip` runs 5 and 6);
 7. **refine** (:func:`motion_env.generation.refine.refine_clip`, only for clips with joint targets
    or objectives): test-time optimisation of the body, then the closed-form finish
    (:mod:`motion_env.generation.closed_form`); it re-runs 5 and 6 around its corrections.
@@ -43,10 +46,12 @@ import torch
 
 from motion_env.generation.closed_form import implied_route
 from motion_env.generation.feet import FootPinner
+from motion_env.generation.physics import apply_physics
 from motion_env.generation.recompose import (
     align_heading_to_travel,
     local_pose_from_features,
     recompose,
+    smooth_path,
     snap_route,
 )
 from motion_env.generation.refine import RefineConfig, Refined, refine_clip
@@ -65,6 +70,11 @@ from motion_env.text.vocabulary import Vocabulary, caption_warning, reading_text
 
 __all__ = ["CONTROLLER_STREAM", "TOKEN_STREAM", "Clip", "Pipeline", "row_generator"]
 
+# Frames (Gaussian sigma) the controller's root path of a whole clip is smoothed over before it
+# is bent through the waypoints: the controller brakes and surges for a few frames where it
+# passes a timed waypoint (up to 2 m/s in 3 frames on runs), a horizontal acceleration the
+# MuJoCo replay's root force rejects; 2 frames take the stutter out and keep the pace.
+PATH_SMOOTHING = 2.0
 # The random streams of one character (see row_generator).
 CONTROLLER_STREAM, TOKEN_STREAM = 0, 1
 
@@ -152,6 +162,9 @@ class Pipeline:
             self.text_encoder_name = str(text_encoder.name)
         self._text_encoder = text_encoder
         self.vocabulary: Vocabulary | None = None
+        # Stage 6's physics (generation.physics): on by default; False skips it (faster, as the
+        # models decode, for comparisons or learners that want every frame they can get).
+        self.physics = True
         self._caption_warnings: dict[str, str] = {}  # caption -> its warning ('' none), made once
 
     # ------------------------------------------------------------------ sizes
@@ -322,9 +335,10 @@ class Pipeline:
 
     def plan_paths(self, text_emb: torch.Tensor, req: BatchRequest) -> tuple[list, np.ndarray]:
         """The planned routes (B entries, None or (K, 3)) and the root paths (B, n_path, 3) of whole
-        clips, bent through the routes. Without a route, a character with joint targets is
-        steered to where they are (:func:`~motion_env.generation.closed_form.implied_route`); the
-        path is bent through the request's own route only, the targets bend it later (refine)."""
+        clips, smoothed (PATH_SMOOTHING) and bent through the routes. Without a route, a character
+        with joint targets is steered to where they are
+        (:func:`~motion_env.generation.closed_form.implied_route`); the path is bent through the
+        request's own route only, the targets bend it later (refine)."""
         steer = req.routes
         if req.joint_targets is not None:
             steer = [
@@ -332,6 +346,9 @@ class Pipeline:
                 for r, t in zip(req.routes, req.joint_targets, strict=True)
             ]
         raw = self.clip_paths(text_emb, replace(req, routes=steer), snap=False)
+        # Only a path that passes waypoints stutters; without one the clip's path stays the
+        # controller's own, as the stream's is.
+        raw = [p if r is None else smooth_path(p, PATH_SMOOTHING) for p, r in zip(raw, steer, strict=True)]
         routes = [plan_route(r, s[:2]) for r, s in zip(req.routes, req.starts, strict=True)]
         return routes, np.stack([snap_route(p, r) for p, r in zip(raw, routes, strict=True)])
 
@@ -384,11 +401,16 @@ class Pipeline:
         joints = with_bone_lengths(recompose(local, path, face_travel=False)[..., :num_frames, :, :])
         return joints, path[..., :num_frames, :]
 
-    # ------------------------------------------------------------------ 6. feet
+    # ------------------------------------------------------------------ 6. feet and physics
     def place_clip(
         self, features: np.ndarray, root_path: np.ndarray, num_frames: int
     ) -> tuple[np.ndarray, np.ndarray]:
         """A whole clip's body on its path (:meth:`compose`), then its feet pinned where the decoder
-        marks them planted: (num_frames, 22, 3) joints before and after the pinning."""
+        marks them planted and, with :attr:`physics`, its height made to obey gravity and the floor
+        (:func:`~motion_env.generation.physics.apply_physics`): (num_frames, 22, 3) joints before
+        and after."""
         joints, _ = self.compose(features, root_path, num_frames)
-        return joints, FootPinner(1).apply(0, joints, features[:, FOOT_CONTACT])
+        pinned = FootPinner(1).apply(0, joints, features[:, FOOT_CONTACT])
+        if self.physics:
+            pinned = apply_physics(pinned, features[:, FOOT_CONTACT])
+        return joints, pinned

@@ -252,6 +252,21 @@ def route_anchors(path: np.ndarray, route: np.ndarray, first: int = 0, open_end:
     return np.array(anchors, np.float32).reshape(-1, 3)
 
 
+def smooth_path(path: np.ndarray, sigma: float) -> np.ndarray:
+    """(..., T, 3) root path smoothed in time by a Gaussian of `sigma` frames; frame 0 stays exact.
+
+    The path is extended past both ends by point reflection (``2 p[0] - p[k]``), which keeps a
+    steady walk steady and makes the smoothed first frame the first frame itself.
+    """
+    if sigma <= 0 or path.shape[-2] < 2:
+        return path
+    pad = min(int(4 * sigma) + 1, path.shape[-2] - 1)
+    widths = [(0, 0)] * (path.ndim - 2) + [(pad, pad), (0, 0)]
+    padded = np.pad(np.asarray(path, np.float64), widths, mode="reflect", reflect_type="odd")
+    out = gaussian_filter1d(padded, sigma, axis=-2, mode="nearest", truncate=4.0)
+    return out[..., pad:-pad, :].astype(path.dtype)
+
+
 def snap_route(path: np.ndarray, route: np.ndarray | None) -> np.ndarray:
     """A whole clip's root path bent through the route's anchors (:func:`snap_to_waypoints`)."""
     if route is None:

@@ -34,6 +34,7 @@ import numpy as np
 import torch
 
 from motion_env.generation.feet import FootPinner
+from motion_env.generation.physics import PhysicsFilter
 from motion_env.generation.pipeline import CONTROLLER_STREAM, TOKEN_STREAM, Pipeline, row_generator
 from motion_env.generation.recompose import route_anchors, spread_residuals
 from motion_env.generation.request import (
@@ -153,6 +154,7 @@ class MotionStream:
         self._snapped = np.zeros((b, r, 3), np.float32)  # committed (snapped) root per frame
         self._features = np.zeros((b, r, FEATURE_DIM), np.float32)  # decoded features per frame
         self._feet = FootPinner(b)
+        self._physics = PhysicsFilter(b) if g.physics else None
         self._emitted = np.zeros(b, np.int64)
         self._decoded = np.zeros(b, np.int64)
         self._dirty = np.zeros(b, bool)
@@ -315,6 +317,8 @@ class MotionStream:
         self._dirty[i] = self._route_changed[i] = False
         self._decoder.reset([i])
         self._feet.reset(i)
+        if self._physics is not None:
+            self._physics.reset(i)
         self._control.reset(i)
         self._prev[i] = 0
         self._buffer_pos[i] = self._rate
@@ -429,7 +433,9 @@ class MotionStream:
         tokens = self._sample_tokens(rows, ahead)  # 3. tokens
         body = self._pipe.decode_next(self._decoder, tokens, rows)  # 4. decode
         joints, paths = self._compose(rows, first, body, ahead)  # 5. compose
-        pinned = self._feet.apply_rows(rows, joints, body[:, :, FOOT_CONTACT])  # 6. feet
+        pinned = self._feet.apply_rows(rows, joints, body[:, :, FOOT_CONTACT])  # 6. feet and physics
+        if self._physics is not None:
+            pinned = self._physics.apply_rows(rows, pinned, body[:, :, FOOT_CONTACT])
         for n, i in enumerate(rows):
             f = int(first[n])
             self._snapped[i, np.arange(f, f + self._rate) % self._ring] = ahead[n][: self._rate]

@@ -152,6 +152,21 @@ def check_text_encoder(ckpt: dict[str, Any], encoder: Any, path: str | Path = "c
         )
 
 
+def training_record(ckpt: dict[str, Any]) -> dict[str, Any]:
+    """What a checkpoint says about its training (a training checkpoint's own keys, or the record
+    a packaged one carries), as plain numbers and strings."""
+    if isinstance(ckpt.get("training"), dict):
+        return ckpt["training"]
+    record: dict[str, Any] = {}
+    for key in ("step", "metrics", "settings", "vqvae"):
+        value = ckpt.get(key)
+        if isinstance(value, int | float | str):
+            record[key] = value
+        elif isinstance(value, dict):
+            record[key] = {str(k): v for k, v in value.items() if isinstance(v, int | float | str)}
+    return record
+
+
 def export_checkpoint(src: str | Path, dst: str | Path, half: bool = True) -> Path:
     """Copy a training checkpoint for shipping: without the optimizer state, weights as float16.
 

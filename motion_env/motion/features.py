@@ -11,7 +11,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from motion_env.motion.kinematics import chain_local_rotations, heading_from_joints, rescale_bones, rotate_y
+from motion_env.motion.kinematics import (
+    bone_offsets,
+    chain_local_rotations,
+    forward_kinematics,
+    heading_from_joints,
+    rescale_bones,
+    rotate_y,
+)
 from motion_env.motion.rotations import qbetween, qinv, qmul, qrot, quat_to_rot6d
 from motion_env.motion.skeleton import (
     FACE_JOINTS,
@@ -33,6 +40,7 @@ __all__ = [
     "features_to_joints_torch",
     "joints_to_features",
     "recover_root",
+    "rest_pose_features",
 ]
 
 FOOT_CONTACT_THRESHOLD = 0.002
@@ -130,6 +138,15 @@ def joints_to_features(
     )
     assert features.shape[-1] == FEATURE_DIM
     return features.astype(np.float32)
+
+
+def rest_pose_features() -> np.ndarray:
+    """(263,) features of the canonical skeleton standing in its rest pose (the random model's mean)."""
+    rots = np.zeros((2, NUM_JOINTS, 4))
+    rots[..., 0] = 1.0  # identity quaternions (w, x, y, z)
+    height = -float(bone_offsets()[[2, 5, 8], 1].sum())  # hip + knee + ankle drop of the right leg
+    joints = forward_kinematics(np.array([[0.0, height, 0.0]] * 2), rots)
+    return joints_to_features(joints)[0].astype(np.float32)
 
 
 def _check_features(features: np.ndarray) -> None:

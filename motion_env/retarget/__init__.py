@@ -3,7 +3,8 @@
 >>> import motion_env
 >>> r = motion_env.retarget(motion, robot="unitree_g1", fps=50)   # or "booster_t1", or an MJCF path
 >>> r.qpos.shape                  # (T', nq): root x, y, z, quaternion w, x, y, z, then the joints
->>> r.save("clip.csv"); r.save("clip.npz")
+>>> r.save("clip.npz", format="mjlab")   # mjlab's tracking npz; "gmr" (.pkl), "lafan_csv", "csv", "npz"
+>>> load_robot_motion("clip.npz")         # any of them back
 >>> r.residual_summary()          # how far each tracked frame ended from its target
 
 This package is also callable: ``motion_env.retarget(...)`` is :func:`retarget`.
@@ -12,15 +13,19 @@ What is where (the stages in the order :func:`retarget` runs them):
 
 - :mod:`.robot`: the shipped robots (``robots/<name>/``: Menagerie model, LICENSE, README, the
   mapping table ``retarget.json``), :func:`load_robot`, :func:`known_robots`;
-- :mod:`.table`: the mapping table format; :mod:`.guess`: a table guessed from body names for an
-  MJCF without one;
-- :mod:`.human`: the human's segment frames and limb lengths; :mod:`.targets`: the clip scaled
+- :mod:`.table`: the mapping table format (:func:`.table.describe_table` prints one);
+  :mod:`.guess`: a table guessed from body names for an MJCF without one (it says what it mapped);
+- :mod:`.human`: the human's segment frames and limb lengths; :mod:`.ik_goals`: the clip scaled
   onto the robot as IK targets;
-- :mod:`.ik`: the warm-started differential IK (mink); :mod:`.smoothing`: the low-pass;
-  :mod:`.limits`: joint ranges and speeds; :mod:`.floor`: the lowest point of the geoms;
+- :mod:`.ik`: the warm-started differential IK (mink), inside the joints' soft ranges
+  (:mod:`.limits`: 90 % of each range, and the joint speeds) and with the arms kept off the body
+  (:mod:`.collisions`); :mod:`.smoothing`: the low-pass; :mod:`.floor`: the lowest point of the
+  geoms;
 - :mod:`.api`: :func:`retarget`; :mod:`.stream`: :class:`StreamRetargeter`, the same frame by
-  frame while a motion streams (causal: no low-pass); :mod:`.result`: :class:`RobotMotion` and
-  its CSV / npz files;
+  frame while a motion streams (causal: no low-pass); :mod:`.result`: :class:`RobotMotion`;
+  :mod:`.files`: its files (the project's CSV and npz, mjlab's tracking npz, GMR's pickle, a
+  LAFAN-style CSV) and :func:`load_robot_motion`; :mod:`.tracking`: the bodies and velocities of
+  mjlab's npz;
 - :mod:`.quality`: the numbers ``scripts/evaluate_retarget.py`` reports; :mod:`.video`: a video
   of a robot clip.
 
@@ -31,8 +36,9 @@ import sys
 import types
 
 from motion_env.retarget.api import retarget
+from motion_env.retarget.files import load_robot_motion
 from motion_env.retarget.ik import IKSettings
-from motion_env.retarget.result import RobotMotion, load_robot_motion
+from motion_env.retarget.result import RobotMotion
 from motion_env.retarget.robot import known_robots, load_robot
 from motion_env.retarget.stream import StreamRetargeter
 

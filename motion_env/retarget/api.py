@@ -3,10 +3,11 @@
 The stages, each in its own module:
 
 1. resample the clip to the robot's rate (:func:`motion_env.motion.kinematics.resample`);
-2. scale it onto the robot and turn it into IK targets (:mod:`.targets`);
-3. solve the IK frame by frame, warm-started, joint ranges as constraints (:mod:`.ik`);
+2. scale it onto the robot and turn it into IK targets (:mod:`.ik_goals`);
+3. solve the IK frame by frame, warm-started, the joints' soft ranges as constraints (:mod:`.ik`);
 4. low-pass the result (:mod:`.smoothing`), cap the joint speed and clip every joint into its
-   range (:mod:`.limits`): the returned clip never leaves a joint range;
+   soft range (:mod:`.limits`): the returned clip never leaves it (90 % of each joint's range
+   about its centre by default, as mjlab's robots use);
 5. set each frame's root height from the lowest foot geom (:mod:`.floor`): the feet stand on the
    floor while the human's do and lift as high as the human's (scaled) when they leave it, and
    no geom goes below the floor;
@@ -20,16 +21,16 @@ from numbers import Real
 
 import numpy as np
 
-from motion_env.motion.checks import check_joints
 from motion_env.motion.kinematics import resample
 from motion_env.motion.skeleton import FPS
 from motion_env.motion.types import Motion
+from motion_env.motion.validation import check_joints
 from motion_env.retarget.ik import IKSettings, solve_clip
-from motion_env.retarget.limits import clip_to_limits, limit_speed
+from motion_env.retarget.ik_goals import compute_targets
+from motion_env.retarget.limits import SOFT_LIMIT, check_soft_limit, clip_to_limits, limit_speed
 from motion_env.retarget.result import RobotMotion
 from motion_env.retarget.robot import load_robot
 from motion_env.retarget.smoothing import smooth_qpos
-from motion_env.retarget.targets import compute_targets
 
 __all__ = ["MAX_FPS", "check_rate", "retarget"]
 
@@ -68,6 +69,7 @@ def retarget(
     *,
     max_joint_speed: float = 15.0,
     smoothing: float = 0.03,
+    soft_limit: float = SOFT_LIMIT,
     ik: IKSettings | None = None,
 ) -> RobotMotion:
     """Retarget a human clip onto a humanoid robot.
@@ -80,6 +82,8 @@ def retarget(
         fps: frame rate of the result (the clip is resampled).
         max_joint_speed: fastest a joint may turn, rad/s (or m/s for a slide joint).
         smoothing: standard deviation of the Gaussian low-pass over the result, seconds (0: none).
+        soft_limit: share of each joint's range, about its centre, that the clip stays inside
+            (1: the whole range).
         ik: the solver's settings (iterations, damping); the defaults suit both shipped robots.
 
     Returns:
@@ -99,6 +103,7 @@ def retarget(
     max_step = check_rate(max_joint_speed, "max_joint_speed") / fps
     if isinstance(smoothing, bool) or not isinstance(smoothing, Real) or not 0 <= smoothing < np.inf:
         raise ValueError(f"smoothing must be a number of seconds >= 0, got {smoothing!r}")
+    soft_limit = check_soft_limit(soft_limit)
     if not isinstance(robot, (str, os.PathLike)):
         raise TypeError(f"robot must be a robot name or a path, got {type(robot)}")
     bot = load_robot(robot)
@@ -106,10 +111,10 @@ def retarget(
 
     joints = resample(joints, src_fps, fps) if fps != src_fps else joints
     targets = compute_targets(bot, joints)
-    qpos = solve_clip(bot, targets, ik or IKSettings())
+    qpos = solve_clip(bot, targets, ik or IKSettings(), soft_limit)
     qpos = smooth_qpos(model, qpos, smoothing * fps)
     limit_speed(model, qpos, max_step)
-    clip_to_limits(model, qpos)
+    clip_to_limits(bot.soft_model(soft_limit), qpos)
 
     pose = bot.kinematics(qpos)
     # Raise or lower each frame so that the feet are where the human's are, but no geom is

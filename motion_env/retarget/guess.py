@@ -4,12 +4,18 @@ Bodies are sorted into sides (``left``/``l`` or ``right``/``r`` as a word of the
 (hip, knee, ankle; shoulder, elbow, wrist) by the words of their names. Of several bodies of one
 part (a hip with pitch, roll and yaw links) the one nearest the root is taken: its origin is the
 joint. The foot is the last body below the ankle. The pelvis is the body both hips hang from, the
-torso the one both shoulders hang from. Legs are required; arms are tracked when found.
+torso the one both shoulders hang from.
+
+Nothing is guessed silently: :func:`guess_table` warns with the whole mapping (``motion-env
+retarget --show-mapping`` prints it), and names each chain it did not find. Legs are required (no
+legs: ValueError); an arm without a shoulder and an elbow is not tracked, a hand without a wrist
+is not (the arm is), each with a warning that names it.
 """
 
 from __future__ import annotations
 
 import re
+import warnings
 from pathlib import Path
 
 import mujoco
@@ -76,12 +82,14 @@ def _root(model: mujoco.MjModel, path: Path) -> int:
     return int(model.jnt_bodyid[free[0]])
 
 
-def guess_table(model: mujoco.MjModel, path: Path) -> RobotTable:
-    """A :class:`RobotTable` for `model` from its body names, or ValueError "no legs found"."""
+def _limbs(model: mujoco.MjModel, path: Path) -> tuple[dict[str, int], list[str]]:
+    """(human joint -> body of both legs and of the arms found, the chains not found), or
+    ValueError "no legs found"."""
     names = [
         (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or "").lower() for b in range(model.nbody)
     ]
     bodies: dict[str, int] = {}
+    missing: list[str] = []
     for side in _SIDES:
         hip = _find(model, names, side, "hip", None)
         knee = _find(model, names, side, "knee", hip) if hip is not None else None
@@ -97,8 +105,26 @@ def guess_table(model: mujoco.MjModel, path: Path) -> RobotTable:
         shoulder = _find(model, names, side, "shoulder", None)
         elbow = _find(model, names, side, "elbow", shoulder) if shoulder is not None else None
         wrist = _find(model, names, side, "wrist", elbow) if elbow is not None else None
-        if wrist is not None:
-            bodies.update({f"{side}_shoulder": shoulder, f"{side}_elbow": elbow, f"{side}_wrist": wrist})
+        if elbow is None:
+            missing.append(
+                f"no {side} arm (a body named like {PART_PATTERNS['shoulder']!r} with one like "
+                f"{PART_PATTERNS['elbow']!r} below it): the {side} arm is not tracked"
+            )
+            continue
+        bodies.update({f"{side}_shoulder": shoulder, f"{side}_elbow": elbow})
+        if wrist is None:
+            missing.append(
+                f"no {side} hand (a body named like {PART_PATTERNS['wrist']!r} below the {side} elbow): "
+                f"the {side} hand is not tracked, the arm is"
+            )
+        else:
+            bodies[f"{side}_wrist"] = wrist
+    return bodies, missing
+
+
+def guess_table(model: mujoco.MjModel, path: Path) -> RobotTable:
+    """A :class:`RobotTable` for `model` from its body names, or ValueError "no legs found"."""
+    bodies, missing = _limbs(model, path)
     root = _root(model, path)
 
     def name(b: int) -> str:
@@ -128,7 +154,7 @@ def guess_table(model: mujoco.MjModel, path: Path) -> RobotTable:
             Task(frame=name(foot), orientation=f"{side}_foot", orientation_cost=_ORIENTATION_COSTS["foot"])
         )
     home = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_KEY, 0) if model.nkey else None
-    return RobotTable(
+    table = RobotTable(
         robot=path.stem,
         model=path,
         root=name(root),
@@ -137,3 +163,14 @@ def guess_table(model: mujoco.MjModel, path: Path) -> RobotTable:
         home=home,
         source=f"{path} (mapping guessed from body names)",
     )
+    for message in missing:
+        warnings.warn(f"{path}: {message}", UserWarning, stacklevel=2)
+    mapped = [f"{t.human or t.orientation + ' orientation'} -> {t.frame}" for t in table.tasks]
+    warnings.warn(
+        f"{path} has no mapping table; guessed from its body names: {', '.join(mapped)} "
+        "(motion-env retarget --show-mapping prints it; a table changes it, see "
+        "motion_env/retarget/table.py)",
+        UserWarning,
+        stacklevel=2,
+    )
+    return table

@@ -22,8 +22,8 @@ import functools
 
 import numpy as np
 
-from motion_env.motion.checks import EPS
 from motion_env.motion.skeleton import JOINT_INDEX
+from motion_env.motion.validation import EPS
 from motion_env.replay.humanoid import rest_positions, to_mujoco
 
 __all__ = ["FRAMES", "LIMBS", "frames", "limb_length", "rest_relative"]

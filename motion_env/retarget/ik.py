@@ -7,8 +7,12 @@ takes a few damped QP steps (:func:`mink.solve_ik`, solver daqp) over
 - a posture task pulling every joint lightly towards the home pose (it settles the joints no
   target reaches: wrists, head, the arm's twist),
 
-under the joint ranges as hard constraints (:class:`mink.ConfigurationLimit`). The first frame
-starts from the home pose at the root target and takes more steps.
+under the joints' soft ranges as hard constraints (:class:`mink.ConfigurationLimit` on the model
+whose ranges are shrunk to `soft_limit` of themselves, :func:`.limits.soft_limited`), and with
+the arms kept off the trunk, the thighs and each other and the shins off each other
+(:class:`mink.CollisionAvoidanceLimit` over :func:`.collisions.self_collision_pairs`). The
+first frame starts from the home pose (inside the soft ranges) at the root target and takes more
+steps.
 """
 
 from __future__ import annotations
@@ -18,8 +22,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from motion_env.motion.rotations import quat_from_matrix
+from motion_env.retarget.collisions import self_collision_pairs
+from motion_env.retarget.ik_goals import Targets
+from motion_env.retarget.limits import SOFT_LIMIT, clip_to_limits
 from motion_env.retarget.robot import Robot
-from motion_env.retarget.targets import Targets
 
 __all__ = ["FrameSolver", "IKSettings", "solve_clip"]
 
@@ -32,13 +38,15 @@ class IKSettings:
     first_iterations: int = 60  # QP steps on the first frame (from the home pose)
     tolerance: float = 1e-3  # stop a frame early when a step moves the joints less than this (rad)
     damping: float = 1.0  # Levenberg-Marquardt damping of every step (smaller steps, smoother)
+    avoid_self_collision: bool = True  # keep arms off the trunk, thighs, each other; shins apart
+    collision_margin: float = 0.01  # metres the IK keeps between those geoms
 
     def __post_init__(self) -> None:
         for name in ("iterations", "first_iterations"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"IKSettings.{name} must be a positive int, got {value!r}")
-        for name in ("tolerance", "damping"):
+        for name in ("tolerance", "damping", "collision_margin"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"IKSettings.{name} must be > 0, got {getattr(self, name)!r}")
 
@@ -60,10 +68,13 @@ class FrameSolver:
     runs one per character of a stream. :meth:`reset` makes the next frame a first frame again.
     """
 
-    def __init__(self, robot: Robot, settings: IKSettings = IKSettings()) -> None:
+    def __init__(
+        self, robot: Robot, settings: IKSettings = IKSettings(), soft_limit: float = SOFT_LIMIT
+    ) -> None:
         mink = _mink()
         self._mink, self.robot, self.settings = mink, robot, settings
-        model = robot.model
+        model = robot.soft_model(soft_limit)  # the same kinematics, the soft joint ranges
+        self._home = clip_to_limits(model, robot.home.copy())
         self.configuration = mink.Configuration(model)
         self.tasks = [
             mink.FrameTask(
@@ -72,8 +83,20 @@ class FrameSolver:
             for t in robot.tasks
         ]
         posture = mink.PostureTask(model, cost=robot.table.posture_cost)
-        posture.set_target(robot.home)
+        posture.set_target(self._home)
         self.limits = [mink.ConfigurationLimit(model)]
+        self._joint_limits = list(self.limits)
+        pairs = self_collision_pairs(robot) if settings.avoid_self_collision else []
+        if pairs:
+            margin = settings.collision_margin
+            self.limits.append(
+                mink.CollisionAvoidanceLimit(
+                    model,
+                    pairs,
+                    minimum_distance_from_collisions=margin,
+                    collision_detection_distance=3 * margin,
+                )
+            )
         self.all_tasks = [*self.tasks, posture] if robot.table.posture_cost > 0 else self.tasks
         self.reset()
 
@@ -88,7 +111,7 @@ class FrameSolver:
         root = robot.root_qpos
         first = self._q is None
         if first:
-            q = robot.home.copy()
+            q = self._home.copy()
             q[root : root + 3] = targets.root_position[t]
             q[root + 3 : root + 7] = quat_from_matrix(targets.root_rotation[t])
         else:
@@ -104,9 +127,24 @@ class FrameSolver:
             task.set_target(mink.SE3(pose))
         dt = 1.0  # steps are displacements: no time scale
         for _ in range(settings.first_iterations if first else settings.iterations):
-            step = mink.solve_ik(
-                configuration, self.all_tasks, dt, solver="daqp", damping=settings.damping, limits=self.limits
-            )
+            try:
+                step = mink.solve_ik(
+                    configuration,
+                    self.all_tasks,
+                    dt,
+                    solver="daqp",
+                    damping=settings.damping,
+                    limits=self.limits,
+                )
+            except mink.NoSolutionFound:  # the collision constraints cannot all hold: joint ranges only
+                step = mink.solve_ik(
+                    configuration,
+                    self.all_tasks,
+                    dt,
+                    "daqp",
+                    damping=settings.damping,
+                    limits=self._joint_limits,
+                )
             configuration.integrate_inplace(step, dt)
             if np.abs(step).max() < settings.tolerance:
                 break
@@ -115,9 +153,12 @@ class FrameSolver:
         return self._q.copy()
 
 
-def solve_clip(robot: Robot, targets: Targets, settings: IKSettings = IKSettings()) -> np.ndarray:
-    """Joint positions that put the robot's frames on the targets, (T, nq) MuJoCo qpos."""
-    solver = FrameSolver(robot, settings)
+def solve_clip(
+    robot: Robot, targets: Targets, settings: IKSettings = IKSettings(), soft_limit: float = SOFT_LIMIT
+) -> np.ndarray:
+    """Joint positions that put the robot's frames on the targets, (T, nq) MuJoCo qpos, every joint
+    inside `soft_limit` of its range."""
+    solver = FrameSolver(robot, settings, soft_limit)
     num_frames = targets.positions.shape[0]
     out = np.empty((num_frames, robot.model.nq))
     for t in range(num_frames):

@@ -5,7 +5,10 @@
 | key | what | target |
 |---|---|---|
 | ``range_violations`` | (frame, joint) entries outside the joint's range | 0 |
+| ``soft_range_violations`` | entries outside the soft range (:data:`.limits.SOFT_LIMIT` of it) | 0 |
 | ``penetration_cm`` | deepest any collision geom goes below the floor | <= 1.5 |
+| ``self_collision_cm`` | deepest two of the robot's own geoms go into each other (an arm into the torso) | |
+| ``self_collision_share`` | share of frames where two of the robot's geoms overlap by more than 5 mm | |
 | ``stand_float_cm`` | highest the robot's lowest point gets while the human stands | <= 4 |
 | ``max_jump_rad`` | largest change of one joint between frames (at the clip's rate) | <= 0.35 at 50 fps |
 | ``hand_corr``, ``foot_corr`` | correlation of wrist / ankle heights with the human's | >= 0.8, >= 0.6 |
@@ -20,17 +23,18 @@ hardly move (a standing clip's feet), the distance ratio when the human travels 
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 
 from motion_env.motion.kinematics import resample
 from motion_env.motion.skeleton import JOINT_INDEX
 from motion_env.motion.types import Motion
-from motion_env.retarget.limits import range_violations
+from motion_env.retarget.ik_goals import human_clearance
+from motion_env.retarget.limits import SOFT_LIMIT, range_violations
 from motion_env.retarget.result import RobotMotion
-from motion_env.retarget.robot import load_robot
-from motion_env.retarget.targets import human_clearance
+from motion_env.retarget.robot import Robot, load_robot
 
-__all__ = ["MIN_TRAVEL", "STAND_CLEARANCE", "TARGETS", "measure"]
+__all__ = ["MIN_TRAVEL", "STAND_CLEARANCE", "TARGETS", "measure", "self_contact_depth"]
 
 STAND_CLEARANCE = 0.025  # metres
 MIN_TRAVEL = 0.5  # metres
@@ -38,6 +42,7 @@ MIN_HEIGHT_STD = 0.01  # metres: below this a height "does not move" and has no 
 # The bounds each number should meet: (low, high), None for no bound.
 TARGETS: dict[str, tuple[float | None, float | None]] = {
     "range_violations": (None, 0),
+    "soft_range_violations": (None, 0),
     "penetration_cm": (None, 1.5),
     "stand_float_cm": (None, 4.0),
     "max_jump_rad": (None, 0.35),
@@ -62,8 +67,26 @@ def _path_length(xy: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(xy, axis=0), axis=-1).sum())
 
 
-def measure(robot_motion: RobotMotion, motion: Motion) -> dict[str, float | int | None]:
-    """The numbers of the module docstring for `robot_motion`, retargeted from `motion`."""
+def self_contact_depth(robot: Robot, qpos: np.ndarray) -> np.ndarray:
+    """(T,) how deep two of the robot's own geoms go into each other, per frame of qpos (T, nq)
+    (metres, 0 if none): MuJoCo's collision detection, which leaves out parent and child."""
+    model, data = robot.model, mujoco.MjData(robot.model)
+    out = np.zeros(len(qpos))
+    for t, q in enumerate(qpos):
+        data.qpos[:] = q
+        mujoco.mj_fwdPosition(model, data)
+        contacts = data.contact[: data.ncon]
+        own = (model.geom_bodyid[contacts.geom[:, 0]] > 0) & (model.geom_bodyid[contacts.geom[:, 1]] > 0)
+        if own.any():
+            out[t] = max(0.0, float(-contacts.dist[own].min()))
+    return out
+
+
+def measure(
+    robot_motion: RobotMotion, motion: Motion, soft_limit: float = SOFT_LIMIT
+) -> dict[str, float | int | None]:
+    """The numbers of the module docstring for `robot_motion`, retargeted from `motion` (the soft
+    range: `soft_limit` of each joint's range about its centre)."""
     robot = load_robot(robot_motion.robot)
     qpos = robot_motion.qpos
     pose = robot.kinematics(qpos)
@@ -89,11 +112,15 @@ def measure(robot_motion: RobotMotion, motion: Motion) -> dict[str, float | int 
         return float(100 * robot_motion.residuals[:, cols].mean()) if cols else None
 
     human_path = _path_length(human[:, 0, [0, 2]])
+    self_depth = self_contact_depth(robot, qpos)
     jumps = np.abs(np.diff(robot_motion.dof_pos, axis=0))
     return {
         "frames": int(len(qpos)),
         "range_violations": range_violations(robot.model, qpos),
+        "soft_range_violations": range_violations(robot.soft_model(soft_limit), qpos),
         "penetration_cm": float(100 * max(0.0, -pose.lowest.min())),
+        "self_collision_cm": float(100 * self_depth.max()),
+        "self_collision_share": float((self_depth > 0.005).mean()),
         "stand_float_cm": float(100 * pose.lowest[standing].max()) if standing.any() else None,
         "stand_share": float(standing.mean()),
         "max_jump_rad": float(jumps.max()) if jumps.size else 0.0,

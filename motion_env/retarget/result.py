@@ -1,17 +1,12 @@
-"""`RobotMotion`: a clip of robot joint positions (MuJoCo qpos), with CSV and npz files.
+"""`RobotMotion`: a clip of robot joint positions (MuJoCo qpos).
 
 The qpos layout is MuJoCo's: the free root (position x, y, z in metres, then the orientation
-quaternion w, x, y, z), then every other joint in the model's order (for the two shipped robots,
-the hinge joints, in radians). MuJoCo's world is Z up and the robot faces +X at zero yaw.
+quaternion **w, x, y, z**), then every other joint in the model's order (for the two shipped
+robots, the hinge joints, in radians). MuJoCo's world is Z up and the robot faces +X at zero yaw.
 
-Files (:meth:`RobotMotion.save`, :func:`load_robot_motion`, chosen by the suffix):
-
-- ``.csv``: one row of qpos per frame, comma-separated; ``#`` comment lines first name the robot,
-  the frame rate and the columns (``root_x, root_y, root_z, root_qw, root_qx, root_qy, root_qz``,
-  then the joint names). ``numpy.loadtxt(path, delimiter=",")`` reads the numbers.
-- ``.npz``: GMR's fields: ``root_pos`` (T, 3), ``root_rot`` (T, 4) in **xyzw** order (as GMR
-  writes it; ``root_rot_order`` says so), ``dof_pos`` (T, nq - 7), ``fps``, ``joint_names``; and
-  ``robot``, ``residuals``, ``residual_names``.
+:meth:`RobotMotion.save` writes it in the project's CSV or npz, or in the files motion trackers
+read (mjlab's tracking npz, GMR's pickle, a LAFAN-style CSV); :func:`load_robot_motion` reads
+them all back. The formats and their quaternion orders: :mod:`motion_env.retarget.files`.
 """
 
 from __future__ import annotations
@@ -21,10 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["ROOT_COLUMNS", "RobotMotion", "load_robot_motion"]
+__all__ = ["ROOT_COLUMNS", "RobotMotion"]
 
 ROOT_COLUMNS = ("root_x", "root_y", "root_z", "root_qw", "root_qx", "root_qy", "root_qz")
-_SUFFIXES = (".csv", ".npz")
 
 
 @dataclass
@@ -105,84 +99,23 @@ class RobotMotion:
             for k, name in enumerate(self.residual_names)
         }
 
-    def save(self, path: str | Path) -> Path:
-        """Write the clip as ``.csv`` (qpos rows) or ``.npz`` (GMR's fields), by the suffix."""
-        path = Path(path)
-        suffix = path.suffix.lower()
-        if suffix not in _SUFFIXES:
-            raise ValueError(f"{path}: a robot motion is saved as one of {_SUFFIXES}, not {suffix!r}")
-        path.parent.mkdir(parents=True, exist_ok=True)
-        if suffix == ".csv":
-            header = "\n".join(
-                [
-                    "motion_env robot motion: MuJoCo qpos, one row per frame",
-                    f"robot: {self.robot}",
-                    f"fps: {self.fps:g}",
-                    "root quaternion order: wxyz",
-                    "columns: " + ",".join(self.columns),
-                ]
-            )
-            np.savetxt(path, self.qpos, delimiter=",", fmt="%.6f", header=header, comments="# ")
-            return path
-        arrays = {
-            "root_pos": self.root_pos,
-            "root_rot": self.root_rot[:, [1, 2, 3, 0]],
-            "root_rot_order": np.array("xyzw"),
-            "dof_pos": self.dof_pos,
-            "fps": np.float64(self.fps),
-            "joint_names": np.array(self.joint_names, dtype=str),
-            "robot": np.array(self.robot),
-        }
-        if self.residuals is not None:
-            arrays["residuals"] = self.residuals
-            arrays["residual_names"] = np.array(self.residual_names, dtype=str)
-        np.savez(path, **arrays)
-        return path
+    def save(self, path: str | Path, format: str | None = None, *, fps: float | None = None) -> Path:
+        """Write the clip to `path` and return the path.
 
+        Args:
+            path: the file; its suffix must fit the format.
+            format: ``"csv"`` (the project's, default for .csv), ``"npz"`` (the project's, default
+                for .npz), ``"mjlab"`` (.npz, mjlab's tracking clip), ``"gmr"`` (.pkl, default for
+                .pkl) or ``"lafan_csv"`` (.csv, no header, quaternion x, y, z, w). See
+                :mod:`motion_env.retarget.files`.
+            fps: the rate to write (resampled): default 50 for mjlab, 30 for lafan_csv, else the
+                clip's own.
 
-def _read_csv(path: Path) -> RobotMotion:
-    meta: dict[str, str] = {}
-    with path.open() as f:
-        for line in f:
-            if not line.startswith("#"):
-                break
-            key, _, value = line[1:].strip().partition(": ")
-            meta[key] = value
-    if "columns" not in meta or "fps" not in meta:
-        raise ValueError(f"{path}: not a robot motion CSV (no '# fps:' and '# columns:' header lines)")
-    columns = meta["columns"].split(",")
-    qpos = np.loadtxt(path, delimiter=",", ndmin=2)
-    if qpos.shape[1] != len(columns) or tuple(columns[:7]) != ROOT_COLUMNS:
-        raise ValueError(
-            f"{path}: {qpos.shape[1]} numbers per row but the header names {len(columns)} columns"
-        )
-    return RobotMotion(qpos, float(meta["fps"]), tuple(columns[7:]), meta.get("robot", ""))
+        Raises:
+            ValueError: a suffix that does not fit the format, or a clip that fails the checks
+                (non-finite numbers, a root quaternion that is not unit, another joint count than
+                the robot's); nothing is written then.
+        """
+        from motion_env.retarget.files import write_robot_motion  # files.py imports this module
 
-
-def _read_npz(path: Path) -> RobotMotion:
-    with np.load(path, allow_pickle=False) as data:
-        missing = [k for k in ("root_pos", "root_rot", "dof_pos", "fps") if k not in data]
-        if missing:
-            raise ValueError(f"{path}: missing fields {missing} (keys: {sorted(data.keys())})")
-        order = str(data["root_rot_order"]) if "root_rot_order" in data else "xyzw"  # GMR's
-        if order not in ("xyzw", "wxyz"):
-            raise ValueError(f"{path}: root_rot_order must be 'xyzw' or 'wxyz', got {order!r}")
-        rot = data["root_rot"] if order == "wxyz" else data["root_rot"][:, [3, 0, 1, 2]]
-        qpos = np.concatenate([data["root_pos"], rot, data["dof_pos"]], axis=1)
-        dofs = data["dof_pos"].shape[1]
-        names = tuple(data["joint_names"]) if "joint_names" in data else tuple(f"dof{i}" for i in range(dofs))
-        residuals = data["residuals"] if "residuals" in data else None
-        residual_names = tuple(data["residual_names"]) if "residual_names" in data else ()
-        robot = str(data["robot"]) if "robot" in data else ""
-        return RobotMotion(qpos, float(data["fps"]), names, robot, residuals, residual_names)
-
-
-def load_robot_motion(path: str | Path) -> RobotMotion:
-    """Read a clip written by :meth:`RobotMotion.save` (.csv or .npz; a GMR-style npz too)."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"no robot motion file at {path}")
-    suffix = path.suffix.lower()
-    if suffix not in _SUFFIXES:
-        raise ValueError(f"{path}: a robot motion file is one of {_SUFFIXES}, not {suffix!r}")
-    return _read_csv(path) if suffix == ".csv" else _read_npz(path)
+        return write_robot_motion(self, path, format, fps)

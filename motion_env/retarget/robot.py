@@ -21,10 +21,10 @@ import mujoco
 import numpy as np
 
 from motion_env.retarget.floor import GeomPoints, collision_geoms
-from motion_env.retarget.limits import clip_to_limits
+from motion_env.retarget.limits import clip_to_limits, soft_limited
 from motion_env.retarget.table import RobotTable, Task, read_table
 
-__all__ = ["ROBOTS_DIR", "TABLE_NAME", "Kinematics", "Robot", "known_robots", "load_robot"]
+__all__ = ["ROBOTS_DIR", "TABLE_NAME", "Kinematics", "Robot", "known_robots", "load_robot", "subtree"]
 
 ROBOTS_DIR = Path(str(resources.files("motion_env.retarget").joinpath("robots")))
 TABLE_NAME = "retarget.json"
@@ -104,13 +104,15 @@ class Robot:
         self._frame_ids = {(t.type, t.frame): _name_id(model, t.type, t.frame, where) for t in table.tasks}
         self.feet: dict[str, GeomPoints] = {}
         for side, foot in table.feet.items():
-            geoms = collision_geoms(model, _subtree(model, [_name_id(model, "body", foot, where)]))
+            geoms = collision_geoms(model, subtree(model, [_name_id(model, "body", foot, where)]))
             if geoms.size == 0:
                 raise ValueError(f"{where}: the {side} foot {foot!r} has no geoms to stand on")
             self.feet[side] = GeomPoints(model, geoms)
         self.foot_geoms = GeomPoints(model, np.concatenate([g.geoms for g in self.feet.values()]))
         self.body_geoms = GeomPoints(model, collision_geoms(model))
         self.home = self._home(where)
+        self._soft_models: dict[float, mujoco.MjModel] = {}
+        self._geom_points: dict[tuple[int, ...], GeomPoints] = {}  # subsets of body_geoms
         self._rest(table)
 
     def _home(self, where: str) -> np.ndarray:
@@ -140,6 +142,13 @@ class Robot:
             for side, g in self.feet.items()
         }
 
+    def soft_model(self, soft_limit: float) -> mujoco.MjModel:
+        """The model with each joint range shrunk to `soft_limit` of itself about its centre
+        (:func:`~motion_env.retarget.limits.soft_limited`); made once per share."""
+        if soft_limit not in self._soft_models:
+            self._soft_models[soft_limit] = soft_limited(self.model, soft_limit)
+        return self._soft_models[soft_limit]
+
     def kinematics(self, qpos: np.ndarray) -> Kinematics:
         """Forward kinematics of a clip, qpos (T, nq) -> :class:`Kinematics`."""
         data = mujoco.MjData(self.model)
@@ -154,11 +163,30 @@ class Robot:
             frames[t] = [self.frame_position(data, task) for task in self.tasks]
             xpos[t], xmat[t] = data.geom_xpos[geoms], data.geom_xmat[geoms]
         feet = self.foot_geoms.geoms.size
+        foot_lowest = self.foot_geoms.lowest(xpos[:, :feet], xmat[:, :feet]).min(axis=1)
         return Kinematics(
             frame_positions=frames,
-            foot_lowest=self.foot_geoms.lowest(xpos[:, :feet], xmat[:, :feet]).min(axis=1),
-            lowest=self.body_geoms.lowest(xpos[:, feet:], xmat[:, feet:]).min(axis=1),
+            foot_lowest=foot_lowest,
+            lowest=self._lowest(xpos[:, feet:], xmat[:, feet:], foot_lowest),
         )
+
+    def _lowest(self, xpos: np.ndarray, xmat: np.ndarray, foot_lowest: np.ndarray) -> np.ndarray:
+        """(T,) lowest point of all collision geoms, given their poses (T, G, 3), (T, G, 9).
+
+        The exact lowest point of a mesh geom costs a pass over its hull's vertices every frame;
+        a geom whose bounding sphere stays above the feet's lowest point in every frame cannot be
+        lower, so only the others are measured (most frames: the feet alone).
+        """
+        ids = self.body_geoms.geoms
+        below = ((xpos[..., 2] - self.model.geom_rbound[ids]) < foot_lowest[:, None]).any(axis=0)
+        keep = tuple(np.flatnonzero(below))
+        if not keep:
+            return foot_lowest.copy()
+        if keep not in self._geom_points:
+            self._geom_points[keep] = GeomPoints(self.model, ids[list(keep)])
+        cols = list(keep)
+        lowest = self._geom_points[keep].lowest(xpos[:, cols], xmat[:, cols]).min(axis=1)
+        return np.minimum(lowest, foot_lowest)
 
     def frame_id(self, task: Task) -> int:
         return self._frame_ids[(task.type, task.frame)]
@@ -186,7 +214,7 @@ def _qpos_names(model: mujoco.MjModel, skip: int) -> tuple[str, ...]:
     return tuple(names)
 
 
-def _subtree(model: mujoco.MjModel, bodies: list[int]) -> list[int]:
+def subtree(model: mujoco.MjModel, bodies: list[int]) -> list[int]:
     """The bodies and all their descendants."""
     out = set(bodies)
     for b in range(model.nbody):  # parents come before children in MuJoCo's body order

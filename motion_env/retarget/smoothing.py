@@ -12,10 +12,10 @@ import mujoco
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-__all__ = ["smooth_qpos"]
+__all__ = ["quaternion_columns", "smooth_qpos"]
 
 
-def _quaternion_columns(model: mujoco.MjModel) -> list[int]:
+def quaternion_columns(model: mujoco.MjModel) -> list[int]:
     """qpos index of the first (w) entry of every quaternion (free and ball joints)."""
     out = []
     for j in range(model.njnt):
@@ -35,7 +35,7 @@ def smooth_qpos(model: mujoco.MjModel, qpos: np.ndarray, sigma_frames: float) ->
     out = np.array(qpos, dtype=np.float64)
     if sigma_frames <= 0 or out.shape[0] < 2:
         return out
-    quats = _quaternion_columns(model)
+    quats = quaternion_columns(model)
     for a in quats:
         q = out[:, a : a + 4]
         # q and -q are one rotation: flip each to the hemisphere of the previous frame.

@@ -8,12 +8,12 @@ Every frame uses that frame and the past only, so an RL agent or a tracker gets 
 reference motion as the human's is generated (the environments' ``robot=`` option). Per frame,
 the stages of :func:`motion_env.retarget.retarget` that need no future frames:
 
-1. the frame scaled onto the robot as IK targets (:func:`.targets.compute_targets`, with the limb
+1. the frame scaled onto the robot as IK targets (:func:`.ik_goals.compute_targets`, with the limb
    scales measured on the character's first frame);
 2. the IK (:class:`.ik.FrameSolver`), warm-started from the character's previous frame (the
    first frame from the home pose);
 3. the joint speed capped against the previous frame (:func:`.limits.limit_speed`), every joint
-   clipped into its range (:func:`.limits.clip_to_limits`);
+   clipped into its soft range (:func:`.limits.clip_to_limits`);
 4. the root height from the lowest foot geom (:mod:`.floor`), as in the whole-clip retargeter.
 
 There is no Gaussian low-pass (it would need future frames): a streamed clip is a little less
@@ -27,13 +27,13 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from motion_env.motion.checks import check_joints
 from motion_env.motion.skeleton import FPS
+from motion_env.motion.validation import check_joints
 from motion_env.retarget.api import check_rate
 from motion_env.retarget.ik import FrameSolver, IKSettings
-from motion_env.retarget.limits import clip_to_limits, limit_speed
+from motion_env.retarget.ik_goals import compute_targets, limb_scales
+from motion_env.retarget.limits import SOFT_LIMIT, check_soft_limit, clip_to_limits, limit_speed
 from motion_env.retarget.robot import Robot, load_robot
-from motion_env.retarget.targets import compute_targets, limb_scales
 
 __all__ = ["StreamRetargeter"]
 
@@ -46,6 +46,7 @@ class StreamRetargeter:
             :func:`motion_env.retarget.retarget`.
         batch: the number of characters B.
         max_joint_speed: fastest a joint may turn, rad/s (or m/s for a slide joint).
+        soft_limit: share of each joint's range, about its centre, that the frames stay inside.
         ik: the solver's settings.
 
     Attributes:
@@ -61,13 +62,15 @@ class StreamRetargeter:
         batch: int = 1,
         *,
         max_joint_speed: float = 15.0,
+        soft_limit: float = SOFT_LIMIT,
         ik: IKSettings | None = None,
     ) -> None:
         if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)) or batch < 1:
             raise ValueError(f"batch must be a positive int, got {batch!r}")
         self.robot: Robot = load_robot(robot)
         self.max_step = check_rate(max_joint_speed, "max_joint_speed") / self.fps
-        self._solvers = [FrameSolver(self.robot, ik or IKSettings()) for _ in range(int(batch))]
+        self._limits = self.robot.soft_model(check_soft_limit(soft_limit))
+        self._solvers = [FrameSolver(self.robot, ik or IKSettings(), soft_limit) for _ in range(int(batch))]
         self._scales: list[tuple[float, float] | None] = [None] * int(batch)
         self.qpos = np.tile(self.robot.home, (int(batch), 1))
 
@@ -105,7 +108,7 @@ class StreamRetargeter:
             q = solver.solve(targets)
             if not first:
                 q = limit_speed(model, np.stack([self.qpos[b], q]), self.max_step)[1]
-            clip_to_limits(model, q)
+            clip_to_limits(self._limits, q)
             pose = bot.kinematics(q[None])
             lift = max(float(targets.floor_height[0] - pose.foot_lowest[0]), float(-pose.lowest[0]))
             q[bot.root_qpos + 2] += lift

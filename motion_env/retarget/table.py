@@ -34,7 +34,7 @@ from typing import Any
 from motion_env.motion.skeleton import JOINT_INDEX
 from motion_env.retarget.human import FRAMES, LIMBS
 
-__all__ = ["FRAME_TYPES", "RobotTable", "Task", "read_table"]
+__all__ = ["FRAME_TYPES", "RobotTable", "Task", "describe_table", "read_table"]
 
 FRAME_TYPES = ("body", "site")
 
@@ -130,3 +130,27 @@ def read_table(path: str | Path) -> RobotTable:
         posture_cost=raw.get("posture_cost", 0.05),
         source=str(path),
     )
+
+
+def describe_table(table: RobotTable) -> str:
+    """The mapping as text, one line per task: which robot frame follows which human joint or
+    segment, and at what cost; then the limbs the table does not track."""
+    lines = [
+        f"robot {table.robot}: {table.source or table.model}",
+        f"  root body {table.root}; feet {table.feet['left']} (left), {table.feet['right']} (right)",
+    ]
+    for t in table.tasks:
+        follows = []
+        if t.human is not None:
+            cost = f" (cost {t.position_cost:g})" if t.position_cost else ""
+            follows.append(f"{t.human} position{cost}")
+        if t.orientation is not None:
+            follows.append(f"{t.orientation} orientation (cost {t.orientation_cost:g})")
+        role = ", ".join(follows) if t.position_cost or t.orientation_cost else "reference only"
+        lines.append(f"  {t.type} {t.frame:<28} <- {role}")
+    mapped = {t.human for t in table.tasks if t.human is not None}
+    for limb, names in LIMBS.items():
+        missing = [n for n in names if n not in mapped and n.split("_", 1)[1] != "foot"]
+        if missing:
+            lines.append(f"  not tracked: {', '.join(missing)} ({limb.replace('_', ' ')})")
+    return "\n".join(lines)

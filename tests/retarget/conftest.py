@@ -42,6 +42,29 @@ def _waving_clip(frames: int = 30, raise_to: float = 2.0) -> Motion:
     return Motion(joints.astype(np.float32), text="a person raises the right arm")
 
 
+def _crossing_clip(frames: int = 30) -> Motion:
+    """The canonical rest pose standing still, both arms crossing in front of the chest and back:
+    each wrist goes a hand's width in front of the other shoulder (the arms pass through the
+    trunk of a robot that follows them blindly)."""
+    rest = rest_positions()
+    joints = np.repeat(rest[None], frames, axis=0).astype(np.float64)
+    share = np.sin(np.linspace(0, np.pi, frames))[:, None] ** 2
+    chest = rest[JOINT_INDEX["spine3"]]
+    for side, other in (("left", "right"), ("right", "left")):
+        wrist, elbow = JOINT_INDEX[f"{side}_wrist"], JOINT_INDEX[f"{side}_elbow"]
+        # Motion axes: +Y up, +Z forward.
+        target = chest + 0.6 * (rest[JOINT_INDEX[f"{other}_shoulder"]] - chest) + np.array([0, -0.12, 0.06])
+        joints[:, wrist] = rest[wrist] + share * (target - rest[wrist])
+        joints[:, elbow] = rest[elbow] + share * np.array([0.0, 0.0, 0.10])
+    return Motion(joints.astype(np.float32), text="a person crosses the arms")
+
+
+@pytest.fixture(scope="session")
+def crossing_clip() -> Callable[..., Motion]:
+    """``crossing_clip(frames=30)`` -> a standing clip that crosses both arms over the chest."""
+    return _crossing_clip
+
+
 @pytest.fixture(scope="session")
 def waving_clip() -> Callable[..., Motion]:
     """``waving_clip(frames=30, raise_to=2.0)`` -> a standing clip that lifts the right arm."""

@@ -56,6 +56,44 @@ def test_cli_user_errors(
     assert not (tmp_path / "x.csv").exists()
 
 
+def test_cli_formats_for_trackers(tmp_path: Path, waving_clip, capsys) -> None:
+    src = waving_clip(frames=10).save(tmp_path / "wave.npz")
+    out = tmp_path / "wave_g1.npz"
+    assert main(["retarget", str(src), "--format", "mjlab", "--out", str(out)]) == 0
+    assert "(unitree_g1, 23 frames at 50 fps, format mjlab" in capsys.readouterr().out
+    with np.load(out) as data:
+        assert data["body_quat_w"].shape == (23, 30, 4) and data["joint_pos"].dtype == np.float32
+    lafan = tmp_path / "wave_g1.csv"
+    assert main(["retarget", str(src), "--format", "lafan_csv", "--out", str(lafan)]) == 0
+    assert "14 frames at 30 fps, format lafan_csv" in capsys.readouterr().out  # 30 fps by default
+    assert np.loadtxt(lafan, delimiter=",").shape == (14, 36)
+    pkl = tmp_path / "wave_t1.pkl"
+    assert main(["retarget", str(src), "--robot", "booster_t1", "--out", str(pkl), "--soft-limit", ".8"]) == 0
+    assert load_robot_motion(pkl).robot == "booster_t1"
+    assert main(["retarget", str(src), "--format", "gmr", "--out", str(tmp_path / "x.csv")]) == 2
+    assert "--out " in capsys.readouterr().err
+    assert main(["retarget", str(src), "--out", str(tmp_path / "y.csv"), "--soft-limit", "2"]) == 2
+    assert "--soft-limit must be in (0, 1]" in capsys.readouterr().err
+
+
+def test_cli_show_mapping(capsys) -> None:
+    assert main(["retarget", "--robot", "booster_t1", "--show-mapping"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("robot booster_t1: ") and "<- left_wrist position (cost 5)" in out
+    assert main(["retarget", "--robot", "booster_t1"]) == 2
+    assert "--out is required" in capsys.readouterr().err
+
+
+def test_cli_refuses_a_pickled_motion_clearly(tmp_path: Path, capsys) -> None:
+    """A motion .npz whose joints are an object array (clips of different lengths in one file)."""
+    joints = np.empty(2, dtype=object)
+    joints[0], joints[1] = np.zeros((3, 22, 3)), np.zeros((4, 22, 3))
+    np.savez(tmp_path / "ragged.npz", joints=joints)
+    assert main(["retarget", str(tmp_path / "ragged.npz"), "--out", str(tmp_path / "r.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "ragged.npz: 'joints' is a pickled object array" in err and "allow_pickle" not in err
+
+
 def test_cli_video(tmp_path: Path, waving_clip, capsys) -> None:
     src = waving_clip(frames=6).save(tmp_path / "wave.npz")
     video = tmp_path / "wave.gif"
@@ -69,6 +107,7 @@ def test_cli_video(tmp_path: Path, waving_clip, capsys) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.filterwarnings("ignore:the project's robot CSV")  # the example writes it on purpose
 def test_example_runs(tmp_path: Path) -> None:
     spec = importlib.util.spec_from_file_location("example_retarget_to_robot", EXAMPLE)
     module = importlib.util.module_from_spec(spec)
@@ -84,6 +123,7 @@ def test_example_runs(tmp_path: Path) -> None:
     assert json.loads((tmp_path / "result.json").read_text())["args"]["random_model"] is True
 
 
+@pytest.mark.filterwarnings("ignore::UserWarning")  # the guessed mapping is said: tested elsewhere
 def test_video_of_an_mjcf_without_a_floor(tmp_path: Path, waving_clip) -> None:
     """The G1's body XML has no floor and no light: the video adds them."""
     import motion_env

@@ -17,7 +17,8 @@ def clip(waving_clip) -> RobotMotion:
 
 
 def test_csv_round_trip(clip: RobotMotion, tmp_path: Path) -> None:
-    path = clip.save(tmp_path / "clip.csv")
+    with pytest.warns(UserWarning, match="lafan_csv"):  # pointing LAFAN-style tool users there
+        path = clip.save(tmp_path / "clip.csv")
     header = [line for line in path.read_text().splitlines() if line.startswith("#")]
     assert any(line == "# columns: " + ",".join(clip.columns) for line in header)
     assert np.loadtxt(path, delimiter=",").shape == clip.qpos.shape  # plain numbers under the header
@@ -41,10 +42,13 @@ def test_npz_has_gmr_fields_and_round_trips(clip: RobotMotion, tmp_path: Path) -
 
 
 def test_bad_files(clip: RobotMotion, tmp_path: Path) -> None:
-    with pytest.raises(ValueError, match="saved as one of"):
+    with pytest.raises(ValueError, match="saved as .csv, .npz or .pkl"):
         clip.save(tmp_path / "clip.txt")
     with pytest.raises(FileNotFoundError, match="no robot motion file"):
         load_robot_motion(tmp_path / "missing.csv")
     (tmp_path / "plain.csv").write_text("1,2,3\n")
-    with pytest.raises(ValueError, match="not a robot motion CSV"):
-        load_robot_motion(tmp_path / "plain.csv")
+    with pytest.raises(ValueError, match="plain.csv: 3 columns per row; a LAFAN-style CSV has"):
+        load_robot_motion(tmp_path / "plain.csv")  # no header: read as a LAFAN-style CSV
+    (tmp_path / "bad_header.csv").write_text("# robot: g1\n1,2,3\n")
+    with pytest.raises(ValueError, match="bad_header.csv: not a robot motion CSV"):
+        load_robot_motion(tmp_path / "bad_header.csv")

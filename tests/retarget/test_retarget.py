@@ -7,8 +7,8 @@ import pytest
 
 import motion_env
 from motion_env.motion.types import Motion
-from motion_env.retarget import RobotMotion, load_robot
-from motion_env.retarget.limits import range_violations
+from motion_env.retarget import IKSettings, RobotMotion, load_robot
+from motion_env.retarget.limits import clip_to_limits, range_violations, soft_limited
 from motion_env.retarget.quality import measure
 
 ROBOTS = ("unitree_g1", "booster_t1")
@@ -81,3 +81,51 @@ def test_real_walk_feet_on_the_floor(robot: str, real_walk: Motion) -> None:
     assert 0.5 <= numbers["distance_ratio"] <= 1.1
     ankles = [k for k, n in enumerate(result.residual_names) if n.endswith("ankle")]
     assert result.residuals[:, ankles].mean() < 0.04
+
+
+def test_soft_limited_ranges_are_centred_shares() -> None:
+    model = load_robot("unitree_g1").model
+    soft = soft_limited(model, 0.9)
+    hinges = np.flatnonzero(model.jnt_limited)
+    mid, half = model.jnt_range[hinges].mean(1), np.diff(model.jnt_range[hinges], axis=1)[:, 0] / 2
+    np.testing.assert_allclose(soft.jnt_range[hinges, 0], mid - 0.9 * half)
+    np.testing.assert_allclose(soft.jnt_range[hinges, 1], mid + 0.9 * half)
+    assert soft_limited(model, 1.0) is model
+    # clip_to_limits clips hinges (numpy ints against mujoco's enum: compared as ints).
+    qpos = np.tile(model.qpos0, (2, 1))
+    qpos[:, model.jnt_qposadr[hinges]] = 10.0
+    clipped = clip_to_limits(soft, qpos.copy())
+    np.testing.assert_allclose(clipped[0, model.jnt_qposadr[hinges]], soft.jnt_range[hinges, 1])
+    assert range_violations(model, qpos) == 2 * len(hinges) and range_violations(soft, clipped) == 0
+    with pytest.raises(ValueError, match=r"soft_limit must be a share of the joint range in \(0, 1\]"):
+        soft_limited(model, 1.5)
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_joints_stay_inside_the_soft_range(robot: str, waving_clip) -> None:
+    """An arm raised as far as it goes, hands out of reach: every joint stays inside 90 % of its
+    range; asked for 80 %, inside 80 %."""
+    clip = waving_clip(frames=30, raise_to=2.8)
+    bot = load_robot(robot)
+    for share in (0.9, 0.8):
+        result = motion_env.retarget(clip, robot=robot, fps=20, soft_limit=share)
+        assert measure(result, clip, soft_limit=share)["soft_range_violations"] == 0
+        limited = np.flatnonzero(bot.model.jnt_limited)
+        q = result.qpos[:, bot.model.jnt_qposadr[limited]]
+        low, high = bot.model.jnt_range[limited].T
+        share_used = np.abs(q - (low + high) / 2) / ((high - low) / 2)
+        assert share_used.max() <= share + 1e-9
+    with pytest.raises(ValueError, match="soft_limit must be a share"):
+        motion_env.retarget(clip, robot=robot, soft_limit=0)
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_arms_do_not_go_through_the_body(robot: str, crossing_clip) -> None:
+    """Arms crossed over the chest: followed blindly, the forearms go through the torso (and the
+    hands into the hips at rest); with the collision constraints, no geoms overlap."""
+    clip = crossing_clip()
+    blind = motion_env.retarget(clip, robot=robot, fps=20, ik=IKSettings(avoid_self_collision=False))
+    assert measure(blind, clip)["self_collision_cm"] > 5.0
+    kept = motion_env.retarget(clip, robot=robot, fps=20)
+    numbers = measure(kept, clip)
+    assert numbers["self_collision_cm"] < 0.5 and numbers["soft_range_violations"] == 0

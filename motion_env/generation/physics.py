@@ -1,0 +1,394 @@
+"""Physics cleanup: flight and contact made consistent, in closed form (no simulator in the loop).
+
+The decoded body moves its centre of mass in ways no body can: it falls faster than gravity at
+the top of a running stride, lands with spikes the legs cannot give, floats or sinks into the
+floor. This stage, run on the feet stage's output, fixes the vertical motion of the whole body:
+
+- **ground**: the body stands on its planted feet (a body that floats above or sinks below the
+  lowest foot the decoder marks planted is lowered or raised to it, the estimate followed over
+  about half a second, and raised where a foot would still be below the floor); a planted foot's
+  lowest sole point is on the floor, a free foot none below it and, while it moves, clear of it
+  (:func:`~motion_env.generation.ground.ground_feet`; legs are re-solved with
+  :func:`~motion_env.generation.feet.two_bone_ik`, so bones keep their lengths and feet the
+  horizontal place the feet stage pinned);
+- **flight**: while no foot touches the floor (no contact flag and both soles clear of it), the
+  centre of mass falls freely: a parabola of gravity :data:`GRAVITY` through the take-off and
+  landing heights (:func:`plan_heights`);
+- **contact**: with a foot on the floor the vertical acceleration of the centre of mass stays
+  within what floor and legs can give (:data:`STANCE_ACCELERATION`), so take-offs and landings
+  have no spikes.
+
+Only vertical positions change, by a shift of the whole body plus the legs' re-solve: the pelvis
+keeps its horizontal path, so timed waypoints are met as before. :class:`PhysicsFilter` is the
+causal version for the stream (past frames and the current token's frames only; it delays
+nothing and never changes a frame it has put out); :func:`apply_physics`, for whole clips, is the
+same filter given the whole clip at once.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import lsq_linear
+
+from motion_env.generation.feet import LEGS
+from motion_env.generation.ground import (
+    FLAT_ANKLE_HEIGHT,
+    FLAT_ANKLE_RANGE,
+    SWING_STRAIGHT,
+    centre_of_mass,
+    deepest_reach,
+    flight_frames,
+    place_body,
+    sole_heights,
+    support_gap,
+    swing_clearance,
+)
+from motion_env.motion.skeleton import FOOT_JOINTS, FPS, NUM_JOINTS
+
+__all__ = [
+    "GRAVITY",
+    "STANCE_ACCELERATION",
+    "PhysicsFilter",
+    "apply_physics",
+    "plan_heights",
+]
+
+GRAVITY = 9.81  # m/s^2
+# Vertical acceleration (m/s^2) of the centre of mass while a foot is on the floor. The floor
+# only pushes, and friction needs some push to carry horizontal forces, so the body falls slower
+# than free fall; runners' legs push with up to about 2.5 body weights.
+STANCE_ACCELERATION = (-0.75 * GRAVITY, 2.5 * GRAVITY)
+# How fast the estimate of how far the body floats above its planted feet follows each frame's
+# (a share per frame: about half a second).
+FLOAT_RATE = 0.1
+# A foot the plan leaves this far (m) above the floor, its leg stretched (ground.MAX_STRETCH),
+# does not reach it: with no foot that does, the body is in the air (the stream's plan carries a
+# take-off's speed on before it sees the landing).
+UNREACHABLE = 0.04
+# The longest flight (frames); a longer stretch without contacts is no jump (a decoder that marks
+# no contacts at all), and the body is not made to fall.
+MAX_FLIGHT_FRAMES = 16
+# Weights of the height plan's least squares: keep the wanted heights, their velocities and
+# (weakly) the changes of their accelerations.
+_WEIGHT_POSITION, _WEIGHT_VELOCITY, _WEIGHT_JERK = 1.0, 1.0, 0.5
+# Height plans per call at most: each finds landings and take-offs the flags missed.
+_REPLANS = 4
+
+
+def _height_basis(m: int) -> np.ndarray:
+    """(m, m) matrix B with heights = B @ x, x = (c_0, c_1, s_1 .. s_{m-2}): the first two heights
+    and the second differences at frames 1..m-2 (m >= 2)."""
+    k = np.arange(m)[:, None]
+    basis = np.zeros((m, m))
+    basis[:, 0] = 1.0 - k[:, 0]
+    basis[:, 1] = k[:, 0]
+    basis[:, 2:] = np.maximum(k - np.arange(1, m - 1)[None, :], 0)
+    return basis
+
+
+def plan_heights(
+    raw: np.ndarray,
+    flight: np.ndarray,
+    past: np.ndarray | None = None,
+    past_raw: np.ndarray | None = None,
+) -> np.ndarray:
+    """Heights of the centre of mass that obey gravity, as close to the wanted ones as they can.
+
+    Bounded least squares over the second differences: in the air the centre of mass falls
+    freely (acceleration -GRAVITY: a parabola through the take-off and the landing), with a foot
+    on the floor its acceleration stays within :data:`STANCE_ACCELERATION`; the heights, their
+    velocities and (weakly) the changes of their accelerations follow `raw`, so heights that obey
+    both already stay as they are.
+
+    Args:
+        raw: (n,) wanted heights of the frames to plan.
+        flight: (h + n,) bool, frames in the air (:func:`flight_frames`), the past frames' first.
+        past: (h,) heights of the h (0 to 3) frames before, which stay as they are (the stream's
+            emitted frames); None: none.
+        past_raw: (h,) their wanted heights.
+
+    Returns:
+        (n,) planned heights.
+    """
+    raw = np.asarray(raw, dtype=np.float64)
+    past = np.zeros(0) if past is None else np.asarray(past, dtype=np.float64)
+    past_raw = np.zeros(0) if past_raw is None else np.asarray(past_raw, dtype=np.float64)
+    h, n = len(past), len(raw)
+    m = h + n
+    if m < 3:  # no frame with a neighbour on each side: no acceleration to plan
+        return raw.copy()
+    dt2 = 1.0 / FPS**2
+    basis = _height_basis(m)
+    fixed = np.full(m, np.nan)  # x = (c_0, c_1, s_1 .. s_{m-2}); NaN: free
+    fixed[: min(h, 2)] = past[:2]
+    for i in range(1, h - 1):  # accelerations the emitted frames already show
+        fixed[i + 1] = past[i + 1] - 2 * past[i] + past[i - 1]
+    air = np.asarray(flight, dtype=bool)[1 : m - 1] & np.isnan(fixed[2:])
+    fixed[2:][air] = -GRAVITY * dt2
+    free = np.isnan(fixed)
+    first = max(h, 1)
+    wanted = np.concatenate([past_raw, raw])
+    jerk = np.zeros((m - 3, m))
+    jerk[np.arange(m - 3), np.arange(3, m)] = 1.0
+    jerk[np.arange(m - 3), np.arange(2, m - 1)] = -1.0
+    a = np.concatenate(
+        [
+            _WEIGHT_POSITION * basis[h:],
+            _WEIGHT_VELOCITY * (basis[first:] - basis[first - 1 : -1]),
+            _WEIGHT_JERK * jerk,
+        ]
+    )
+    b = np.concatenate(
+        [
+            _WEIGHT_POSITION * raw,
+            _WEIGHT_VELOCITY * np.diff(wanted)[first - 1 :],
+            _WEIGHT_JERK * np.diff(wanted, 3),
+        ]
+    )
+    x = fixed.copy()
+    if free.any():
+        lo, hi = np.full(m, -np.inf), np.full(m, np.inf)
+        lo[2:], hi[2:] = STANCE_ACCELERATION[0] * dt2, STANCE_ACCELERATION[1] * dt2
+        rhs = b - a[:, ~free] @ fixed[~free]
+        x[free] = _bounded_lstsq(a[:, free], rhs, lo[free], hi[free])
+    return (basis @ x)[h:]
+
+
+def _bounded_lstsq(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """argmin |a x - b| with lo <= x <= hi: (M, N), (M,), (N,), (N,) -> (N,).
+
+    An active set: bounds that the free solution crosses are held, and released again where the
+    gradient pulls inwards. The stream's problems are a few variables, for which this is many
+    times faster than scipy's general solver; that one finishes what does not settle here.
+    """
+    x = np.clip(np.zeros(a.shape[1]), lo, hi)
+    held = np.zeros(a.shape[1], dtype=bool)
+    for _ in range(2 * a.shape[1] + 4):
+        free = ~held
+        if free.any():
+            x[free] = np.linalg.lstsq(a[:, free], b - a[:, held] @ x[held], rcond=None)[0]
+        crossed = free & ((x < lo) | (x > hi))
+        if crossed.any():
+            x = np.clip(x, lo, hi)
+            held |= crossed
+            continue
+        pull = a.T @ (a @ x - b)  # the gradient: a held bound is released if it points inwards
+        inwards = held & (((x <= lo) & (pull < 0)) | ((x >= hi) & (pull > 0)))
+        if not inwards.any():
+            return x
+        held[np.argmax(np.abs(np.where(inwards, pull, 0.0)))] = False
+    return lsq_linear(a, b, bounds=(lo, hi), method="bvls").x
+
+
+def _cap_flights(flight: np.ndarray, airborne: int) -> tuple[np.ndarray, int]:
+    """Flight flags (n,) without stretches longer than MAX_FLIGHT_FRAMES, as far as they are seen
+    (`airborne`: frames in the air just before these); returns them and the stretch's length at
+    the end."""
+    out = flight.copy()
+    count, start = airborne, 0
+    for t in range(len(flight) + 1):
+        if t < len(flight) and flight[t]:
+            count += 1
+            continue
+        if count > MAX_FLIGHT_FRAMES:
+            out[start:t] = False
+        if t < len(flight):
+            count, start = 0, t + 1
+    return out, count
+
+
+class PhysicsFilter:
+    """Causal physics cleanup for B characters (the module's stage, one token at a time).
+
+    Each call plans the new frames' heights (:func:`plan_heights`) on from the last three frames
+    it put out, which stay as they were: it needs no future frames and never changes a frame it
+    has returned. Given a whole clip in one call it is :func:`apply_physics`. The height of a
+    flat foot's ankle is learnt from the frames seen so far (both contacts of a foot on).
+
+    Args:
+        batch: B characters; the state of each carries over from one call to the next.
+    """
+
+    HISTORY = 3  # frames of the past the plan continues (position, velocity, acceleration)
+
+    def __init__(self, batch: int) -> None:
+        self.past = np.zeros((batch, self.HISTORY))  # heights of the centre of mass put out
+        self.past_raw = np.zeros((batch, self.HISTORY))  # and as they were wanted
+        self.past_flight = np.zeros((batch, self.HISTORY), dtype=bool)
+        self.seen = np.zeros(batch, dtype=np.int64)  # frames put out, up to HISTORY
+        self.airborne = np.zeros(batch, dtype=np.int64)  # frames in the air just before
+        self.feet = np.zeros((batch, len(FOOT_JOINTS), 2))  # foot joints' x, z in the last frame
+        self.soles = np.zeros((batch, 2))  # and the soles' heights (as decoded)
+        self.flat = np.zeros((batch, 2))  # sum and count of flat feet's ankle heights
+        self.free = np.zeros((batch, 2))  # frames each foot has been free, up to the last frame
+        self.floating = np.full(batch, np.nan)  # how far the body floats (m), NaN: not known yet
+
+    def reset(self, i: int) -> None:
+        """Forget character i's past (a new episode)."""
+        self.past[i] = self.past_raw[i] = self.feet[i] = self.soles[i] = 0.0
+        self.flat[i] = self.free[i] = 0.0
+        self.past_flight[i] = False
+        self.seen[i] = self.airborne[i] = 0
+        self.floating[i] = np.nan
+
+    def apply(self, i: int, joints: np.ndarray, contacts: np.ndarray) -> np.ndarray:
+        """Character i's next frames: (n, 22, 3) joints and (n, 4) contact channels -> (n, 22, 3)."""
+        return self.apply_rows(np.array([i]), np.asarray(joints)[None], np.asarray(contacts)[None])[0]
+
+    def apply_rows(self, rows: np.ndarray, joints: np.ndarray, contacts: np.ndarray) -> np.ndarray:
+        """The next frames of characters `rows`: (R, n, 22, 3) joints and (R, n, 4) contact channels
+        (left ankle, left toe, right ankle, right toe; > 0.5 = in contact) -> (R, n, 22, 3) float32;
+        the same as :meth:`apply` row by row."""
+        joints = np.asarray(joints, dtype=np.float64)
+        flags = np.asarray(contacts) > 0.5
+        rows = np.asarray(rows, dtype=np.int64)
+        (r, n), frames = joints.shape[:2], joints.reshape(-1, NUM_JOINTS, 3)
+        if not n:
+            return joints.astype(np.float32)
+        # What needs no plan is measured for every row at once.
+        flat_ankle = self._flat_ankle(rows, joints, flags)  # (R,)
+        soles = sole_heights(joints, flat_ankle[:, None])  # (R, n, 2)
+        planted = flags.reshape(r, n, 2, 2).any(axis=-1)  # (R, n, 2) left, right
+        reach = [
+            -deepest_reach(frames[:, hip], frames[:, knee], frames[:, ankle]) for hip, knee, ankle, _ in LEGS
+        ]
+        lowest = soles - np.stack(reach, axis=-1).reshape(r, n, 2)  # soles with the legs stretched
+        com = centre_of_mass(joints)[..., 1]
+        flight = flight_frames(flags, soles)
+        clearance = self._clearance(rows, joints, planted, soles)
+        heights = np.stack(
+            [
+                self._plan(int(i), soles[k], com[k], planted[k], flight[k], lowest[k])
+                for k, i in enumerate(rows)
+            ]
+        )
+        # The legs' re-solve is the costly part: every row's frames at once.
+        out = place_body(
+            frames,
+            heights.ravel(),
+            planted.reshape(-1, 2),
+            clearance.reshape(-1, 2),
+            np.repeat(flat_ankle, n),
+        ).reshape(joints.shape)
+        last = min(n, self.HISTORY)  # the next plan continues what was put out
+        self.past[rows, -last:] = centre_of_mass(out[:, -last:])[..., 1]
+        return out.astype(np.float32)
+
+    def _flat_ankle(self, rows: np.ndarray, joints: np.ndarray, flags: np.ndarray) -> np.ndarray:
+        """(R,) flat-foot ankle height of characters `rows`, learnt from their frames so far and
+        `joints` (R, n, 22, 3), `flags` (R, n, 4): frames with both contacts of a foot on."""
+        for leg, (_, _, ankle, toe) in enumerate(LEGS):
+            flat = flags[..., 2 * leg] & flags[..., 2 * leg + 1]
+            self.flat[rows, 0] += np.where(flat, joints[..., ankle, 1] - joints[..., toe, 1], 0.0).sum(axis=1)
+            self.flat[rows, 1] += flat.sum(axis=1)
+        seen = self.flat[rows, 1] > 0
+        mean = self.flat[rows, 0] / np.maximum(self.flat[rows, 1], 1)
+        return np.where(seen, np.clip(mean, *FLAT_ANKLE_RANGE), FLAT_ANKLE_HEIGHT)
+
+    def _plan(
+        self,
+        i: int,
+        soles: np.ndarray,
+        com: np.ndarray,
+        planted: np.ndarray,
+        flight: np.ndarray,
+        lowest: np.ndarray,
+    ) -> np.ndarray:
+        """Character i's new frames: (n,) heights of the centre of mass, from (n, 2) sole heights,
+        (n,) decoded heights of the centre of mass, (n, 2) planted feet, (n,) frames in the air
+        by the flags, (n, 2) sole heights with the legs stretched; updates its state."""
+        floating = self._float(i, support_gap(soles, planted))
+        # The body is wanted standing on its planted feet, and raised where a foot would still
+        # be below the floor (a landing the flags have not seen: a straight leg cannot shorten).
+        raw = com - floating + np.maximum(floating - soles.min(axis=1), 0.0)
+        flight, _ = _cap_flights(flight, int(self.airborne[i]))
+        keep = self._keep(i)
+        support = np.where(planted.any(axis=1, keepdims=True), planted, True)
+        settled = np.zeros(len(com), dtype=bool)  # frames found on the floor: they stay there
+        for _ in range(_REPLANS):
+            past_flight = self.past_flight[i, keep]
+            planned = plan_heights(
+                raw, np.r_[past_flight, flight], self.past[i, keep], self.past_raw[i, keep]
+            )
+            shift = (planned - com)[:, None]
+            # A fall that brings a foot to the floor is a landing, whatever the flags say; a body
+            # whose feet cannot reach the floor is in the air.
+            landed = flight & ((soles + shift).min(axis=1) < 0.0)
+            aloft = ~flight & ~settled & np.where(support, lowest + shift > UNREACHABLE, True).all(axis=1)
+            if not landed.any() and not aloft.any():
+                break
+            if landed.any():
+                first = int(np.argmax(landed))
+                end = first + _run_length(flight[first:])
+                flight[first:end], settled[first:end] = False, True
+            flight |= aloft
+        self._remember(i, planned, raw, flight)
+        return planned
+
+    def _keep(self, i: int) -> slice:
+        """Character i's frames in the history (the last `seen`)."""
+        return slice(self.HISTORY - int(self.seen[i]), self.HISTORY)
+
+    def _float(self, i: int, gap: np.ndarray) -> np.ndarray:
+        """(n,) how far character i's body floats above the floor in new frames: the support gap
+        (n,) (NaN: unknown) followed slowly from its first value, so a body that floats or sinks
+        throughout is moved, while a foot that lifts early or lands late (whose gap is noise
+        between frames) moves no more than itself."""
+        out = np.zeros(len(gap))
+        for t, g in enumerate(gap):
+            if not np.isnan(g):
+                last = self.floating[i]
+                self.floating[i] = g if np.isnan(last) else last + FLOAT_RATE * (g - last)
+            out[t] = 0.0 if np.isnan(self.floating[i]) else self.floating[i]
+        return out
+
+    def _clearance(
+        self, rows: np.ndarray, joints: np.ndarray, planted: np.ndarray, soles: np.ndarray
+    ) -> np.ndarray:
+        """(R, n, 2) lowest sole height of the free feet of characters `rows` in new frames (R, n,
+        22, 3), `planted` and `soles` (R, n, 2) (:func:`swing_clearance`); updates the feet's
+        state."""
+        feet = joints[:, :, list(FOOT_JOINTS)][..., [0, 2]]  # (R, n, 4, 2)
+        steps = np.linalg.norm(
+            np.diff(np.concatenate([self.feet[rows][:, None], feet], axis=1), axis=1), axis=-1
+        )
+        descent = -np.diff(np.concatenate([self.soles[rows][:, None], soles], axis=1), axis=1)
+        steps[self.seen[rows] == 0, 0] = descent[self.seen[rows] == 0, 0] = 0.0  # nothing before
+        self.feet[rows], self.soles[rows] = feet[:, -1], soles[:, -1]
+        legs = [(joints[..., h, :], joints[..., k, :], joints[..., a, :]) for h, k, a, _ in LEGS]
+        stretch = np.stack([_norm(a - h) / (_norm(k - h) + _norm(a - k)) for h, k, a in legs], axis=-1)
+        descent = np.where(stretch > SWING_STRAIGHT, np.inf, descent)
+        speed = steps.reshape(steps.shape[:2] + (2, 2)).max(axis=-1) * FPS  # (R, n, 2): ankle or toe
+        free = np.zeros_like(speed)
+        for t in range(joints.shape[1]):
+            self.free[rows] = free[:, t] = np.where(planted[:, t], 0.0, np.minimum(self.free[rows] + 1, 100))
+        return swing_clearance(speed, free, descent)
+
+    def _remember(self, i: int, heights: np.ndarray, raw: np.ndarray, flight: np.ndarray) -> None:
+        """Keep character i's last frames: the planned heights (:meth:`apply_rows` puts in the
+        placed ones), the wanted heights, and flight."""
+        keep = self._keep(i)
+        n = min(keep.stop - keep.start + len(heights), self.HISTORY)
+        self.past[i, -n:] = np.concatenate([self.past[i, keep], heights])[-n:]
+        self.past_raw[i, -n:] = np.concatenate([self.past_raw[i, keep], raw])[-n:]
+        self.past_flight[i, -n:] = np.concatenate([self.past_flight[i, keep], flight])[-n:]
+        self.seen[i] = n
+        trailing = _run_length(flight[::-1])
+        self.airborne[i] = self.airborne[i] + trailing if trailing == len(flight) else trailing
+
+
+def _norm(v: np.ndarray) -> np.ndarray:
+    """Lengths of (..., 3) vectors -> (...)."""
+    return np.sqrt((v**2).sum(axis=-1))
+
+
+def _run_length(flags: np.ndarray) -> int:
+    """How many of `flags` (n,) are true before the first false one."""
+    return int(np.argmin(flags)) if not flags.all() else len(flags)
+
+
+def apply_physics(joints: np.ndarray, contacts: np.ndarray) -> np.ndarray:
+    """A whole clip made physically consistent (see the module): (T, 22, 3) joints after the feet
+    stage and (T, 4) decoded contact channels (left ankle, left toe, right ankle, right toe; > 0.5
+    = in contact) -> (T, 22, 3) float32 joints. Only vertical positions change."""
+    return PhysicsFilter(1).apply(0, joints, contacts)

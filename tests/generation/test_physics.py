@@ -1,0 +1,215 @@
+"""The physics stage: grounding, ballistic flights, smooth contacts; whole clips and the stream."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from motion_env.generation.feet import LEGS, two_bone_ik
+from motion_env.generation.ground import (
+    COM_WEIGHTS,
+    FLAT_ANKLE_HEIGHT,
+    SWING_CLEARANCE,
+    SWING_RISE,
+    centre_of_mass,
+    sole_heights,
+    swing_clearance,
+)
+from motion_env.generation.physics import (
+    GRAVITY,
+    STANCE_ACCELERATION,
+    PhysicsFilter,
+    apply_physics,
+    plan_heights,
+)
+from motion_env.motion.skeleton import BONE_LENGTHS, FOOT_CONTACT, FPS, PARENTS, RAW_OFFSETS
+
+DT2 = 1.0 / FPS**2
+
+
+def _standing(frames: int) -> np.ndarray:
+    """A person standing still on flat feet, knees a little bent, soles on the floor: (T, 22, 3)."""
+    dirs = RAW_OFFSETS.astype(np.float64)
+    for thigh, shin, foot in ((4, 7, 10), (5, 8, 11)):
+        dirs[thigh], dirs[shin] = (0.0, -1.0, 0.3), (0.0, -1.0, -0.3)
+        dirs[foot] = (0.0, -FLAT_ANKLE_HEIGHT, np.sqrt(BONE_LENGTHS[foot] ** 2 - FLAT_ANKLE_HEIGHT**2))
+    dirs[1:] /= np.linalg.norm(dirs[1:], axis=1, keepdims=True)
+    pose = np.zeros((22, 3))
+    for j in range(1, 22):
+        pose[j] = pose[PARENTS[j]] + dirs[j] * BONE_LENGTHS[j]
+    # The legs differ in length: the longer one bends more, so both soles touch the floor.
+    hip, knee, ankle, toe = LEGS[0]
+    new_knee, new_ankle = two_bone_ik(
+        pose[[hip]], pose[[knee]], pose[[ankle]], pose[[ankle]] + [0.0, np.diff(sole_heights(pose))[0], 0.0]
+    )
+    pose[toe] += new_ankle[0] - pose[ankle]
+    pose[knee], pose[ankle] = new_knee[0], new_ankle[0]
+    pose[:, 1] -= sole_heights(pose).min()
+    return np.repeat(pose[None], frames, axis=0).astype(np.float32)
+
+
+def _bones(joints: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(joints[:, 1:] - joints[:, list(PARENTS[1:])], axis=-1)
+
+
+def _jump(frames: int = 60, take_off: int = 20, landing: int = 32, peak: float = 0.3) -> tuple:
+    """A standing clip whose body rises and falls along a triangle (no free fall) between
+    `take_off` and `landing`, flagged in the air there: (T, 22, 3) joints, (T, 4) contacts."""
+    joints = _standing(frames)
+    t = np.arange(frames)
+    mid = 0.5 * (take_off + landing - 1)
+    bump = np.clip(peak * (1 - np.abs(t - mid) / (mid - take_off + 1)), 0, None)
+    bump[(t < take_off) | (t >= landing)] = 0.0
+    joints[..., 1] += bump[:, None].astype(np.float32)
+    contacts = np.ones((frames, 4), np.float32)
+    contacts[take_off:landing] = 0.0
+    return joints, contacts
+
+
+def _streamed(joints: np.ndarray, contacts: np.ndarray, rate: int = 4) -> np.ndarray:
+    stage = PhysicsFilter(1)
+    return np.concatenate(
+        [stage.apply(0, joints[f : f + rate], contacts[f : f + rate]) for f in range(0, len(joints), rate)]
+    )
+
+
+def test_centre_of_mass_moves_with_the_body() -> None:
+    assert COM_WEIGHTS.sum() == pytest.approx(1.0)
+    joints = _standing(3).astype(np.float64)
+    shifted = joints + np.array([0.3, -0.2, 1.0])
+    np.testing.assert_allclose(centre_of_mass(shifted), centre_of_mass(joints) + [0.3, -0.2, 1.0], atol=1e-12)
+
+
+def test_centre_of_mass_is_the_replays(humanml3d_sample) -> None:
+    from motion_env.motion.types import Motion
+    from motion_env.replay import measure
+    from motion_env.replay.humanoid import to_mujoco
+
+    joints, _ = humanml3d_sample
+    replayed = measure(Motion(joints=joints[:40], fps=FPS)).com
+    np.testing.assert_allclose(to_mujoco(centre_of_mass(joints[:40])), replayed, atol=0.005)
+
+
+def test_a_body_standing_on_the_floor_is_left_as_it_is() -> None:
+    joints = _standing(30)
+    np.testing.assert_allclose(apply_physics(joints, np.ones((30, 4))), joints, atol=1e-5)
+
+
+@pytest.mark.parametrize("height", [0.05, 0.3])
+def test_a_floating_body_is_lowered_onto_its_planted_feet(height: float) -> None:
+    joints = _standing(30)
+    joints[..., 1] += height
+    out = apply_physics(joints, np.ones((30, 4)))
+    np.testing.assert_allclose(sole_heights(out.astype(np.float64)), 0.0, atol=2e-3)
+    np.testing.assert_allclose(out - joints, np.broadcast_to([0.0, -height, 0.0], out.shape), atol=2e-3)
+
+
+@pytest.mark.parametrize("planted", [True, False])
+def test_nothing_stays_below_the_floor(planted: bool) -> None:
+    joints = _standing(30)
+    joints[..., 1] -= 0.04
+    out = apply_physics(joints, np.full((30, 4), float(planted)))
+    assert out[..., 1].min() > -1e-5
+    assert sole_heights(out.astype(np.float64)).min() > -1e-5
+    np.testing.assert_allclose(_bones(out), _bones(joints), atol=1e-5)
+
+
+def test_a_jump_falls_freely_between_take_off_and_landing() -> None:
+    joints, contacts = _jump()
+    out = apply_physics(joints, contacts)
+    com = centre_of_mass(out.astype(np.float64))[:, 1]
+    accel = np.diff(com, 2)  # accel[k] is frame k + 1's
+    np.testing.assert_allclose(accel[19:31], -GRAVITY * DT2, atol=1e-4)  # frames 20-31 in the air
+    stance = np.r_[accel[:18], accel[32:]]  # frames 1-18 and 33-58: the feet on the floor
+    assert stance.min() >= STANCE_ACCELERATION[0] * DT2 - 1e-4
+    assert stance.max() <= STANCE_ACCELERATION[1] * DT2 + 1e-4
+    assert com[20:32].max() > com[0] + 0.1  # it still jumps
+    np.testing.assert_allclose(out[:, 0, [0, 2]], joints[:, 0, [0, 2]], atol=1e-6)  # only heights change
+    np.testing.assert_allclose(_bones(out), _bones(joints), atol=1e-5)
+    np.testing.assert_allclose(sole_heights(out[:12].astype(np.float64)), 0.0, atol=2e-3)
+
+
+def test_plan_heights_keeps_what_obeys_gravity() -> None:
+    t = np.arange(12)
+    parabola = 1.0 + 0.2 * t * DT2 * FPS - 0.5 * GRAVITY * (t / FPS) ** 2
+    np.testing.assert_allclose(plan_heights(parabola, np.ones(12, bool)), parabola, atol=1e-9)
+    slow = 1.0 + 0.01 * np.sin(t / 3.0)  # gentle enough for a foot on the floor
+    np.testing.assert_allclose(plan_heights(slow, np.zeros(12, bool)), slow, atol=1e-9)
+
+
+def test_a_moving_free_foot_clears_the_floor_unless_it_lands() -> None:
+    speed = np.array([0.0, 0.4, 1.0, 1.0, 1.0, 1.0])
+    free = np.array([5, 5, 1, 2, 5, 5])
+    descent = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.02])  # the last one comes down to land
+    expected = [0.0, 0.5 * SWING_CLEARANCE, SWING_RISE, 2 * SWING_RISE, SWING_CLEARANCE, 0.0]
+    np.testing.assert_allclose(swing_clearance(speed, free, descent), expected)
+
+
+def test_the_stream_given_the_whole_clip_at_once_is_apply_physics() -> None:
+    joints, contacts = _jump()
+    np.testing.assert_array_equal(
+        PhysicsFilter(1).apply(0, joints, contacts), apply_physics(joints, contacts)
+    )
+
+
+def test_the_stream_never_changes_what_it_put_out() -> None:
+    joints, contacts = _jump(frames=64)
+    streamed = _streamed(joints, contacts)
+    other_joints, other_contacts = joints.copy(), contacts.copy()
+    other_joints[40:, :, 1] += 0.2  # the future changes: the body floats, then jumps again
+    other_contacts[48:56] = 0.0
+    np.testing.assert_array_equal(_streamed(other_joints, other_contacts)[:40], streamed[:40])
+    np.testing.assert_allclose(_bones(streamed), _bones(joints), atol=1e-5)
+    assert np.isfinite(_streamed(joints, contacts, rate=1)).all()
+
+
+def test_the_stream_falls_freely_until_it_lands() -> None:
+    """Tokens of 4 frames: the take-off's speed is chosen before the flight is seen whole (and
+    this take-off, from standing still to rising in one frame, leaves the legs little time), so
+    the body lands before the flags say; until then it falls freely, never through the floor."""
+    joints, contacts = _jump()
+    streamed = _streamed(joints, contacts).astype(np.float64)
+    accel = np.diff(centre_of_mass(streamed)[:, 1], 2)  # accel[k] is frame k + 1's
+    touch = 20 + int(np.argmax(sole_heights(streamed[20:]).min(axis=1) < 1e-3))  # the landing
+    assert touch >= 23
+    np.testing.assert_allclose(accel[19 : touch - 2], -GRAVITY * DT2, atol=1e-4)  # frames 20 to touch - 2
+    assert streamed[..., 1].min() > -1e-5
+    assert accel.max() <= STANCE_ACCELERATION[1] * DT2 + 1e-4
+
+
+def test_rows_are_independent_and_reset_forgets() -> None:
+    (a, ca), (b, cb) = _jump(), _jump(take_off=10, landing=18, peak=0.1)
+    stage = PhysicsFilter(2)
+    both = np.concatenate(
+        [
+            stage.apply_rows(
+                np.array([0, 1]), np.stack([a, b])[:, f : f + 4], np.stack([ca, cb])[:, f : f + 4]
+            )
+            for f in range(0, 60, 4)
+        ],
+        axis=1,
+    )
+    np.testing.assert_array_equal(both[0], _streamed(a, ca))
+    np.testing.assert_array_equal(both[1], _streamed(b, cb))
+    stage.reset(1)
+    np.testing.assert_array_equal(stage.apply(1, b, cb), apply_physics(b, cb))
+
+
+def test_outputs_are_finite_for_any_input() -> None:
+    rng = np.random.default_rng(0)
+    joints = _standing(41) + rng.normal(0.0, 0.05, (41, 22, 3)).astype(np.float32)
+    contacts = rng.random((41, 4)).astype(np.float32)
+    out = apply_physics(joints, contacts)
+    assert out.shape == joints.shape and out.dtype == np.float32 and np.isfinite(out).all()
+    assert np.isfinite(_streamed(joints, contacts, rate=3)).all()
+    assert PhysicsFilter(1).apply(0, joints[:0], contacts[:0]).shape == (0, 22, 3)
+
+
+def test_real_motion_moves_little(humanml3d_sample) -> None:
+    joints, features = humanml3d_sample
+    n = min(len(joints), len(features))
+    out = apply_physics(joints[:n], features[:n, FOOT_CONTACT])
+    np.testing.assert_allclose(out[:, 0, [0, 2]], joints[:n, 0, [0, 2]], atol=1e-6)
+    assert np.abs(out - joints[:n])[:, 0, 1].max() < 0.05  # the pelvis
+    assert np.abs(out - joints[:n]).mean() < 0.01
+    np.testing.assert_allclose(_bones(out), _bones(joints[:n]), atol=1e-4)
