@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from motion_env.evaluation.captions import WALK_CAPTIONS, WAVE_RIGHT, heldout_caption
-from motion_env.evaluation.metrics import MISS, foot_skating_ratio
+from motion_env.evaluation.metrics import MISS, check_settings, foot_skating_ratio
 from motion_env.evaluation.route_following import read_index
 from motion_env.motion.kinematics import bone_lengths
 from motion_env.motion.skeleton import BONE_LENGTHS, JOINT_INDEX
@@ -392,15 +392,7 @@ class ControlSettings:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        name = type(self).__name__
-        if not str(self.data).strip():
-            raise ValueError(f"{name}.data must name a dataset folder, got {self.data!r}")
-        if not self.split.strip():
-            raise ValueError(f"{name}.split must be a split name, got {self.split!r}")
-        for attr, low in (("max_clips", 1), ("objective_repeats", 0), ("seed", 0)):
-            value = getattr(self, attr)
-            if isinstance(value, bool) or not isinstance(value, int) or value < low:
-                raise ValueError(f"{name}.{attr} must be an integer >= {low}, got {value!r}")
+        check_settings(self, max_clips=1, objective_repeats=0, seed=0)
 
 
 @dataclass

@@ -12,6 +12,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from motion_env.motion.skeleton import FOOT_JOINTS, FPS, JOINT_INDEX
@@ -19,6 +21,7 @@ from motion_env.motion.trajectory import root_path_from_joints
 from motion_env.motion.validation import check_joints
 
 __all__ = [
+    "check_settings",
     "MISS",
     "SKATE_HEIGHT",
     "SKATE_STEP",
@@ -173,3 +176,18 @@ def diversity(features: np.ndarray) -> float:
         raise ValueError(f"need (N >= 2, D) features, got {x.shape}")
     d = np.linalg.norm(x[:, None] - x[None], axis=-1)
     return float(d[np.triu_indices(len(x), 1)].mean())
+
+
+def check_settings(settings: Any, **minimums: int) -> None:
+    """The checks every evaluation's settings share: ``data`` names a dataset folder, ``split`` a
+    split, and each field of `minimums` is an integer at least its value. ValueError naming the
+    settings class and the field otherwise."""
+    name = type(settings).__name__
+    if not str(settings.data).strip():
+        raise ValueError(f"{name}.data must name a dataset folder, got {settings.data!r}")
+    if not settings.split.strip():
+        raise ValueError(f"{name}.split must be a split name, got {settings.split!r}")
+    for attr, low in minimums.items():
+        value = getattr(settings, attr)
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise ValueError(f"{name}.{attr} must be an integer >= {low}, got {value!r}")

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from motion_env.evaluation.metrics import (
+    check_settings,
     diversity,
     foot_skating_ratio,
     frechet_distance,
@@ -89,17 +90,9 @@ class NaturalnessSettings:
     classifier: str | Path | None = None
 
     def __post_init__(self) -> None:
-        name = type(self).__name__
-        if not str(self.data).strip():
-            raise ValueError(f"{name}.data must name a dataset folder, got {self.data!r}")
-        if not self.split.strip():
-            raise ValueError(f"{name}.split must be a split name, got {self.split!r}")
-        for attr, low in (("per_action", 2), ("seed", 0), ("min_takes", 3)):
-            value = getattr(self, attr)
-            if isinstance(value, bool) or not isinstance(value, int) or value < low:
-                raise ValueError(f"{name}.{attr} must be an integer >= {low}, got {value!r}")
+        check_settings(self, per_action=2, seed=0, min_takes=3)
         if self.stage not in STAGES:
-            raise ValueError(f"{name}.stage must be one of {STAGES}, got {self.stage!r}")
+            raise ValueError(f"NaturalnessSettings.stage must be one of {STAGES}, got {self.stage!r}")
 
 
 @dataclass

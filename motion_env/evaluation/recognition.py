@@ -33,7 +33,7 @@ import numpy as np
 
 from motion_env.data.captions.bandai import captions_for_bandai
 from motion_env.evaluation.captions import RUN_CAPTIONS, heldout_captions
-from motion_env.evaluation.metrics import heading_change, speed_and_cadence
+from motion_env.evaluation.metrics import check_settings, heading_change, speed_and_cadence
 from motion_env.models.classifier import classify, load_classifier
 from motion_env.motion.skeleton import JOINT_INDEX
 from motion_env.training.classifier import LabelledClip, labelled_clips
@@ -308,15 +308,7 @@ class RecognitionSettings:
     classifier: str | Path | None = None
 
     def __post_init__(self) -> None:
-        name = type(self).__name__
-        if not str(self.data).strip():
-            raise ValueError(f"{name}.data must name a dataset folder, got {self.data!r}")
-        if not self.split.strip():
-            raise ValueError(f"{name}.split must be a split name, got {self.split!r}")
-        for attr, low in (("seeds", 1), ("seed", 0)):
-            value = getattr(self, attr)
-            if isinstance(value, bool) or not isinstance(value, int) or value < low:
-                raise ValueError(f"{name}.{attr} must be an integer >= {low}, got {value!r}")
+        check_settings(self, seeds=1, seed=0)
 
 
 @dataclass
