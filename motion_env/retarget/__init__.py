@@ -22,10 +22,10 @@ What is where (the stages in the order :func:`retarget` runs them):
   (:mod:`.collisions`); :mod:`.smoothing`: the low-pass; :mod:`.floor`: the lowest point of the
   geoms;
 - :mod:`.api`: :func:`retarget`; :mod:`.stream`: :class:`StreamRetargeter`, the same frame by
-  frame while a motion streams (causal: no low-pass); :mod:`.result`: :class:`RobotMotion`;
-  :mod:`.files`: its files (the project's CSV and npz, mjlab's tracking npz, GMR's pickle, a
-  LAFAN-style CSV) and :func:`load_robot_motion`; :mod:`.tracking`: the bodies and velocities of
-  mjlab's npz;
+  frame while a motion streams (causal: no low-pass); :mod:`.result`: :class:`RobotMotion` and
+  :func:`load_robot_motion`; :mod:`.files`: its files (the project's CSV and npz, mjlab's tracking
+  npz, GMR's pickle, a LAFAN-style CSV), read and written as plain arrays; :mod:`.tracking`: the
+  bodies and velocities of mjlab's npz;
 - :mod:`.quality`: the numbers ``scripts/evaluate_retarget.py`` reports; :mod:`.video`: a video
   of a robot clip.
 
@@ -36,9 +36,8 @@ import sys
 import types
 
 from motion_env.retarget.api import retarget
-from motion_env.retarget.files import load_robot_motion
 from motion_env.retarget.ik import IKSettings
-from motion_env.retarget.result import RobotMotion
+from motion_env.retarget.result import RobotMotion, load_robot_motion
 from motion_env.retarget.robot import known_robots, load_robot
 from motion_env.retarget.stream import StreamRetargeter
 

@@ -16,23 +16,38 @@
 The format follows the suffix where one suffix means one format: .pkl is ``gmr``; .csv is the
 project's ``csv`` and .npz the project's ``npz`` unless ``lafan_csv`` or ``mjlab`` is asked for.
 Everything is checked before a byte is written (finite numbers, unit quaternions, the robot's
-joint count); :func:`load_robot_motion` reads every format back.
+joint count); :func:`read_robot_motion` reads every format back, as :class:`ClipArrays`
+(:func:`motion_env.retarget.load_robot_motion` wraps them into a ``RobotMotion``).
+
+This module does not import :mod:`.result` (``result`` imports it): the writers take any object
+with ``RobotMotion``'s attributes (:class:`MotionLike`), and the readers return plain arrays.
 """
 
 from __future__ import annotations
 
 import pickle
 import warnings
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
-from motion_env.retarget.result import ROOT_COLUMNS, RobotMotion
 from motion_env.retarget.robot import Robot, load_robot
 from motion_env.retarget.tracking import body_names, resample_qpos, tracking_arrays
 
-__all__ = ["DEFAULT_FPS", "FORMATS", "infer_format", "load_robot_motion", "write_robot_motion"]
+__all__ = [
+    "DEFAULT_FPS",
+    "FORMATS",
+    "ROOT_COLUMNS",
+    "ClipArrays",
+    "MotionLike",
+    "infer_format",
+    "read_robot_motion",
+    "write_robot_motion",
+]
+
+ROOT_COLUMNS = ("root_x", "root_y", "root_z", "root_qw", "root_qx", "root_qy", "root_qz")
 
 FORMATS: dict[str, str] = {"csv": ".csv", "npz": ".npz", "mjlab": ".npz", "gmr": ".pkl", "lafan_csv": ".csv"}
 _BY_SUFFIX = {".csv": "csv", ".npz": "npz", ".pkl": "gmr"}
@@ -40,6 +55,44 @@ DEFAULT_FPS: dict[str, float] = {"mjlab": 50.0, "lafan_csv": 30.0}  # the rest: 
 _UNIT_TOLERANCE = 1e-3
 _XYZW = [1, 2, 3, 0]  # w, x, y, z -> x, y, z, w
 _WXYZ = [3, 0, 1, 2]  # x, y, z, w -> w, x, y, z
+
+
+class MotionLike(Protocol):
+    """What the writers read of a clip: the attributes of :class:`~motion_env.retarget.RobotMotion`.
+
+    A clip to resample is rebuilt as ``type(motion)(qpos, fps, joint_names, robot)``.
+    """
+
+    qpos: np.ndarray
+    fps: float
+    joint_names: tuple[str, ...]
+    robot: str
+    residuals: np.ndarray | None
+    residual_names: tuple[str, ...]
+
+    @property
+    def root_pos(self) -> np.ndarray: ...
+
+    @property
+    def root_rot(self) -> np.ndarray: ...
+
+    @property
+    def dof_pos(self) -> np.ndarray: ...
+
+    @property
+    def columns(self) -> tuple[str, ...]: ...
+
+
+@dataclass
+class ClipArrays:
+    """A clip as read from a file, unchecked: the fields of ``RobotMotion``, which checks them."""
+
+    qpos: np.ndarray
+    fps: float
+    joint_names: tuple[str, ...]
+    robot: str
+    residuals: np.ndarray | None = None
+    residual_names: tuple[str, ...] = field(default=())
 
 
 def infer_format(path: str | Path, format: str | None = None) -> str:
@@ -86,7 +139,7 @@ def _check(path: Path, arrays: dict[str, Any], quaternions: tuple[str, ...]) -> 
             )
 
 
-def _check_robot(path: Path, motion: RobotMotion, robot: Robot | None) -> None:
+def _check_robot(path: Path, motion: MotionLike, robot: Robot | None) -> None:
     """The clip's joints are the robot's, in its order (when the robot can be loaded)."""
     if robot is None or robot.joint_names == motion.joint_names:
         return
@@ -102,7 +155,7 @@ def _check_robot(path: Path, motion: RobotMotion, robot: Robot | None) -> None:
     )
 
 
-def _write_csv(path: Path, motion: RobotMotion) -> None:
+def _write_csv(path: Path, motion: MotionLike) -> None:
     # One message (no file name in it), so Python's warning filter shows it once per caller.
     warnings.warn(
         "the project's robot CSV has a header and the root quaternion as w, x, y, z; tools that "
@@ -123,7 +176,7 @@ def _write_csv(path: Path, motion: RobotMotion) -> None:
     np.savetxt(path, motion.qpos, delimiter=",", fmt="%.6f", header=header, comments="# ")
 
 
-def _npz_arrays(motion: RobotMotion) -> dict[str, Any]:
+def _npz_arrays(motion: MotionLike) -> dict[str, Any]:
     arrays = {
         "root_pos": motion.root_pos,
         "root_rot": motion.root_rot[:, _XYZW],
@@ -139,7 +192,7 @@ def _npz_arrays(motion: RobotMotion) -> dict[str, Any]:
     return arrays
 
 
-def _mjlab_arrays(motion: RobotMotion, robot: Robot) -> dict[str, Any]:
+def _mjlab_arrays(motion: MotionLike, robot: Robot) -> dict[str, Any]:
     arrays: dict[str, Any] = {"fps": np.array([motion.fps])}  # (1,), as mjlab's csv_to_npz writes it
     arrays.update(tracking_arrays(robot, motion.qpos, motion.fps))
     arrays["joint_names"] = np.array(motion.joint_names, dtype=str)
@@ -148,7 +201,7 @@ def _mjlab_arrays(motion: RobotMotion, robot: Robot) -> dict[str, Any]:
     return arrays
 
 
-def _gmr_dict(motion: RobotMotion, robot: Robot | None) -> dict[str, Any]:
+def _gmr_dict(motion: MotionLike, robot: Robot | None) -> dict[str, Any]:
     """GMR's keys (``scripts/bvh_to_robot_dataset.py``) and ``joint_names`` (read by wbc-mjlab)."""
     out: dict[str, Any] = {
         "fps": int(motion.fps) if float(motion.fps).is_integer() else motion.fps,
@@ -170,7 +223,7 @@ def _gmr_dict(motion: RobotMotion, robot: Robot | None) -> dict[str, Any]:
 
 
 def write_robot_motion(
-    motion: RobotMotion, path: str | Path, format: str | None = None, fps: float | None = None
+    motion: MotionLike, path: str | Path, format: str | None = None, fps: float | None = None
 ) -> Path:
     """Write `motion` to `path` as `format` (default: by the suffix; see the module docstring),
     resampled to `fps` (default: 50 for mjlab, 30 for lafan_csv, else the clip's own rate)."""
@@ -210,20 +263,21 @@ def write_robot_motion(
     return path
 
 
-def _resampled(motion: RobotMotion, fps: float, robot: Robot | None) -> RobotMotion:
+def _resampled(motion: MotionLike, fps: float, robot: Robot | None) -> MotionLike:
     if robot is None:
         raise ValueError(
             f"resampling a clip from {motion.fps:g} to {fps:g} fps needs its robot's model; the clip's "
             f"robot is {motion.robot or 'not named'}"
         )
     qpos = resample_qpos(robot.model, motion.qpos, motion.fps, fps)
-    return RobotMotion(qpos, fps, motion.joint_names, motion.robot)  # residuals are per source frame
+    # The clip's own class (RobotMotion); residuals are per source frame, so none are carried over.
+    return type(motion)(qpos, fps, motion.joint_names, motion.robot)
 
 
 # ---------------------------------------------------------------------------------------- reading
 
 
-def _read_csv(path: Path) -> RobotMotion:
+def _read_csv(path: Path) -> ClipArrays:
     meta: dict[str, str] = {}
     with path.open() as f:
         for line in f:
@@ -249,7 +303,7 @@ def _read_csv(path: Path) -> RobotMotion:
     if order == "xyzw":
         qpos[:, 3:7] = qpos[:, 3:7][:, _WXYZ]
     _check_unit_rows(path, qpos[:, 3:7], "columns 4-7")
-    return RobotMotion(qpos, float(meta["fps"]), tuple(columns[7:]), meta.get("robot", ""))
+    return ClipArrays(qpos, float(meta["fps"]), tuple(columns[7:]), meta.get("robot", ""))
 
 
 def _numbers(path: Path) -> np.ndarray:
@@ -294,7 +348,7 @@ def _robot_joints(path: Path, robot: str | None, count: int, where: str) -> tupl
     return names
 
 
-def _read_lafan_csv(path: Path, robot: str | None, fps: float | None) -> RobotMotion:
+def _read_lafan_csv(path: Path, robot: str | None, fps: float | None) -> ClipArrays:
     rows = _numbers(path)
     if rows.shape[1] < 8:
         raise ValueError(
@@ -305,10 +359,10 @@ def _read_lafan_csv(path: Path, robot: str | None, fps: float | None) -> RobotMo
     _check_unit_rows(path, rows[:, 3:7], "columns 4-7")
     _check_xyzw(path, rows[:, 3:7], "columns 4-7")
     qpos = np.concatenate([rows[:, :3], rows[:, 3:7][:, _WXYZ], rows[:, 7:]], axis=1)
-    return RobotMotion(qpos, DEFAULT_FPS["lafan_csv"] if fps is None else fps, names, robot or "")
+    return ClipArrays(qpos, DEFAULT_FPS["lafan_csv"] if fps is None else fps, names, robot or "")
 
 
-def _read_npz(path: Path, robot: str | None) -> RobotMotion:
+def _read_npz(path: Path, robot: str | None) -> ClipArrays:
     try:
         data = np.load(path, allow_pickle=False)
     except Exception as exc:  # np.load raises several types for a corrupt file
@@ -334,7 +388,7 @@ def _names(data: Any, key: str, default: tuple[str, ...]) -> tuple[str, ...]:
     return tuple(str(n) for n in data[key]) if key in data else default
 
 
-def _from_npz(path: Path, data: Any, robot: str | None) -> RobotMotion:
+def _from_npz(path: Path, data: Any, robot: str | None) -> ClipArrays:
     order = str(data["root_rot_order"]) if "root_rot_order" in data else "xyzw"  # GMR's
     if order not in ("xyzw", "wxyz"):
         raise ValueError(f"{path}: root_rot_order must be 'xyzw' or 'wxyz', got {order!r}")
@@ -344,10 +398,10 @@ def _from_npz(path: Path, data: Any, robot: str | None) -> RobotMotion:
     dofs = data["dof_pos"].shape[1]
     names = _names(data, "joint_names", ()) or _robot_joints(path, robot, dofs, "dof_pos")
     residuals = data["residuals"] if "residuals" in data else None
-    return RobotMotion(qpos, float(data["fps"]), names, robot, residuals, _names(data, "residual_names", ()))
+    return ClipArrays(qpos, float(data["fps"]), names, robot, residuals, _names(data, "residual_names", ()))
 
 
-def _from_mjlab(path: Path, data: Any, robot: str | None) -> RobotMotion:
+def _from_mjlab(path: Path, data: Any, robot: str | None) -> ClipArrays:
     """The root is the first body (mjlab's bodies are the robot's, root first)."""
     quat = data["body_quat_w"][:, 0]
     qpos = np.concatenate([data["body_pos_w"][:, 0], quat, data["joint_pos"]], axis=1).astype(np.float64)
@@ -356,7 +410,7 @@ def _from_mjlab(path: Path, data: Any, robot: str | None) -> RobotMotion:
     count = data["joint_pos"].shape[1]
     names = _names(data, "joint_names", ()) or _robot_joints(path, robot, count, "joint_pos")
     fps = float(np.ravel(data["fps"])[0]) if "fps" in data else DEFAULT_FPS["mjlab"]
-    return RobotMotion(qpos, fps, names, robot)
+    return ClipArrays(qpos, fps, names, robot)
 
 
 class _ArrayUnpickler(pickle.Unpickler):
@@ -375,7 +429,7 @@ class _ArrayUnpickler(pickle.Unpickler):
         raise pickle.UnpicklingError(f"refused to load {module}.{name} (only numbers and numpy arrays)")
 
 
-def _read_gmr(path: Path, robot: str | None, fps: float | None) -> RobotMotion:
+def _read_gmr(path: Path, robot: str | None, fps: float | None) -> ClipArrays:
     try:
         with path.open("rb") as f:
             data = _ArrayUnpickler(f).load()
@@ -396,27 +450,19 @@ def _read_gmr(path: Path, robot: str | None, fps: float | None) -> RobotMotion:
     names = tuple(data.get("joint_names") or ()) or _robot_joints(path, robot, dof_pos.shape[1], "dof_pos")
     root_pos = np.asarray(data["root_pos"], dtype=np.float64)
     qpos = np.concatenate([root_pos, root_rot[:, _WXYZ], dof_pos], axis=1)
-    return RobotMotion(qpos, float(data["fps"]) if fps is None else fps, names, robot)
+    return ClipArrays(qpos, float(data["fps"]) if fps is None else fps, names, robot)
 
 
-def load_robot_motion(path: str | Path, *, robot: str | None = None, fps: float | None = None) -> RobotMotion:
-    """Read a robot clip in any format of the module docstring back into a :class:`RobotMotion`.
+def read_robot_motion(path: str | Path, *, robot: str | None = None, fps: float | None = None) -> ClipArrays:
+    """Read a robot clip in any format of the module docstring, as :class:`ClipArrays`.
+
+    :func:`motion_env.retarget.load_robot_motion` is this, checked and wrapped into a
+    ``RobotMotion``; its docstring has the arguments and errors.
 
     The format is told from the file: a .csv with ``#`` header lines is the project's CSV, one
     without is a LAFAN-style CSV; an .npz with ``joint_pos`` and ``body_pos_w`` is mjlab's, one
     with ``root_pos`` the project's (or GMR's npz); a .pkl is GMR's pickle (read without running
     any code it names: numbers and numpy arrays only).
-
-    Args:
-        path: the file.
-        robot: the robot, for files that do not name it (LAFAN-style CSV, mjlab's own npz): its
-            joint names label the columns, and its joint count must match them.
-        fps: the rate of a LAFAN-style CSV (default 30; the other formats record theirs).
-
-    Raises:
-        ValueError: naming the file and the column or key: a wrong column count, a quaternion that
-            is not unit or in an unknown order, missing keys, non-numbers.
-        FileNotFoundError: no file at `path`.
     """
     path = Path(path)
     if not path.is_file():

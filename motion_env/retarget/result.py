@@ -6,7 +6,8 @@ robots, the hinge joints, in radians). MuJoCo's world is Z up and the robot face
 
 :meth:`RobotMotion.save` writes it in the project's CSV or npz, or in the files motion trackers
 read (mjlab's tracking npz, GMR's pickle, a LAFAN-style CSV); :func:`load_robot_motion` reads
-them all back. The formats and their quaternion orders: :mod:`motion_env.retarget.files`.
+them all back. The formats and their quaternion orders: :mod:`motion_env.retarget.files`, which
+reads and writes plain arrays (this module imports it, not the other way round).
 """
 
 from __future__ import annotations
@@ -16,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["ROOT_COLUMNS", "RobotMotion"]
+from motion_env.retarget.files import ROOT_COLUMNS, read_robot_motion, write_robot_motion
 
-ROOT_COLUMNS = ("root_x", "root_y", "root_z", "root_qw", "root_qx", "root_qy", "root_qz")
+__all__ = ["ROOT_COLUMNS", "RobotMotion", "load_robot_motion"]
 
 
 @dataclass
@@ -116,6 +117,27 @@ class RobotMotion:
                 (non-finite numbers, a root quaternion that is not unit, another joint count than
                 the robot's); nothing is written then.
         """
-        from motion_env.retarget.files import write_robot_motion  # files.py imports this module
-
         return write_robot_motion(self, path, format, fps)
+
+
+def load_robot_motion(path: str | Path, *, robot: str | None = None, fps: float | None = None) -> RobotMotion:
+    """Read a robot clip in any format of :mod:`motion_env.retarget.files` back into a :class:`RobotMotion`.
+
+    The format is told from the file: a .csv with ``#`` header lines is the project's CSV, one
+    without is a LAFAN-style CSV; an .npz with ``joint_pos`` and ``body_pos_w`` is mjlab's, one
+    with ``root_pos`` the project's (or GMR's npz); a .pkl is GMR's pickle (read without running
+    any code it names: numbers and numpy arrays only).
+
+    Args:
+        path: the file.
+        robot: the robot, for files that do not name it (LAFAN-style CSV, mjlab's own npz): its
+            joint names label the columns, and its joint count must match them.
+        fps: the rate of a LAFAN-style CSV (default 30; the other formats record theirs).
+
+    Raises:
+        ValueError: naming the file and the column or key: a wrong column count, a quaternion that
+            is not unit or in an unknown order, missing keys, non-numbers.
+        FileNotFoundError: no file at `path`.
+    """
+    clip = read_robot_motion(path, robot=robot, fps=fps)
+    return RobotMotion(clip.qpos, clip.fps, clip.joint_names, clip.robot, clip.residuals, clip.residual_names)

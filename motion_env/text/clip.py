@@ -40,7 +40,7 @@ from typing import Any
 
 import torch
 
-from motion_env.text.encoders import TextEncoder
+from motion_env.text.encoder_base import TextEncoder
 
 __all__ = ["CLIP_HUB_REPO", "CLIP_MODEL", "CLIP_WEIGHTS_ENV", "ClipTextEncoder", "find_clip_weights"]
 
