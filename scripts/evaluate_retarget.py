@@ -26,6 +26,7 @@ import sys  # noqa: E402
 import time  # noqa: E402
 from dataclasses import dataclass  # noqa: E402
 from pathlib import Path  # noqa: E402
+from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -132,6 +133,30 @@ class Args:
     frames: int = 160  # frames per generated clip (20 fps)
     seed: int = 0  # seed of the generated clips
     json: str = ""  # write every clip's numbers here (empty: do not)
+    replay: bool = False  # also judge each robot clip with the robot replay (replay.evaluate_robot)
+
+
+def judge(result: Any, robot: str) -> dict[str, Any]:
+    """The robot replay's verdict on one retargeted clip (plausible, and the checks that failed)."""
+    from motion_env.replay import evaluate_robot
+    from motion_env.retarget import load_robot
+
+    verdict = evaluate_robot(result.qpos, load_robot(robot).model, result.fps)
+    return {"plausible": bool(verdict["plausible"]), "failed": list(verdict["failed"])}
+
+
+def replay_summary(robot: str, rows: list[dict[str, Any]]) -> str:
+    """One line per source: how many clips the robot replay judged plausible, and why not."""
+    lines = []
+    for source in ("real", "generated"):
+        mine = [r for r in rows if r["source"] == source and "plausible" in r]
+        if mine:
+            failed = sorted({c for r in mine for c in r["failed"]})
+            ok = sum(r["plausible"] for r in mine)
+            lines.append(
+                f"{robot} robot replay, {source}: {ok} / {len(mine)} plausible; failed checks: {failed}"
+            )
+    return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -159,6 +184,8 @@ def main(argv: list[str] | None = None) -> int:
             seconds = time.perf_counter() - t0
             row = {"robot": robot, "source": source, "group": group, "clip": name}
             row.update(human_frames=motion.num_frames, seconds=seconds, **measure(result, motion))
+            if args.replay:
+                row.update(judge(result, robot))
             rows.append(row)
             print(f"{robot:11s} {source:9s} {group:5s} {row['frames']:4d} frames  "
                   f"jump {row['max_jump_rad']:.3f}  penetr. {row['penetration_cm']:.2f} cm  "
@@ -186,6 +213,8 @@ def main(argv: list[str] | None = None) -> int:
         results["summary"][robot] = groups
         print(format_table(robot, groups))
         print()
+        if args.replay:
+            print(replay_summary(robot, mine))
     if args.json:
         write_json(args.json, results)
     bad = [r for r in rows if r["range_violations"]]
