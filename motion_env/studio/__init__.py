@@ -8,7 +8,8 @@ What is where:
 - :mod:`.route_progress`: one character's waypoints and its progress along them;
 - :mod:`.agent`: the A* agent (:mod:`policies.astar`) that walks a character to a goal;
 - :mod:`.geometry`: clicks onto the floor, the figure as bone segments, drawn paths to waypoints;
-- :mod:`.keep`: a clip as .npz, BVH or robot CSV bytes;
+- :mod:`.keep`: a clip as .npz, BVH or robot file bytes;
+- :mod:`.robot_view`: the selected character retargeted onto a robot live, and its meshes;
 - :mod:`.server`, :mod:`.view`, :mod:`.panel`: the page, built on viser (the optional ``studio``
   extra, ``pip install "motion-env[studio]"``), imported only by the command that serves it.
 """

@@ -20,6 +20,7 @@ __all__ = [
     "bone_colors",
     "bone_segments",
     "floor_point",
+    "followed_camera",
     "joint_colors",
     "resample_path",
 ]
@@ -99,3 +100,21 @@ def resample_path(points: np.ndarray | Sequence, spacing: float = 0.5) -> np.nda
     count = int(np.ceil(total / spacing))
     at = np.linspace(0.0, total, count + 1)[1:]  # the start is where the character already is
     return np.stack([np.interp(at, along, pts[:, 0]), np.interp(at, along, pts[:, 1])], axis=1)
+
+
+def followed_camera(
+    position: np.ndarray, look_at: np.ndarray, target: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """A camera that follows a character: the look-at point moved over `target` (3,) on the floor
+    (its height kept), the eye moved by as much, so that the angle and distance the user chose by
+    orbiting and zooming are kept.
+
+    It is a translation, so a camera a tab reports late (from before the last move) still carries
+    the user's angle and distance: the view never falls behind the character.
+
+    Returns:
+        (position, look_at), each (3,) float64.
+    """
+    position, look_at = np.asarray(position, np.float64), np.asarray(look_at, np.float64)
+    new_look_at = np.array([target[0], look_at[1], target[2]], np.float64)
+    return position + (new_look_at - look_at), new_look_at

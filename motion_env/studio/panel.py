@@ -15,12 +15,15 @@ from typing import Any, Protocol
 import viser
 
 from motion_env.motion.skeleton import FPS, JOINT_NAMES
+from motion_env.studio.keep import ROBOT_KINDS
+from motion_env.studio.robot_view import ROBOT_CHOICES
 from motion_env.studio.session import HEAD_LIMIT_RANGE, MAX_TARGET_HEIGHT, MIN_TARGET_SECONDS, StudioSession
 from motion_env.studio.state import Stats
 
 __all__ = ["CLICK_MODES", "ControlPanel", "notify"]
 
 CLICK_MODES = ("waypoint", "obstacle", "goal (A* agent)", "joint target")
+SHOW_CHOICES = ("character", *ROBOT_CHOICES)
 JUDGE_SECONDS = 5.0
 
 
@@ -60,7 +63,7 @@ class Playback(Protocol):
     def step_once(self) -> None: ...
     def restart_clock(self) -> None: ...
     def judge(self, index: int, seconds: float) -> str: ...
-    def download(self, client: Any, index: int, kind: str) -> None: ...
+    def download(self, client: Any, index: int, kind: str, robot: str = ...) -> None: ...
     def start_recording(self) -> None: ...
     def stop_recording(self, client: Any, index: int) -> None: ...
 
@@ -95,6 +98,13 @@ class ControlPanel:
             )
             self.apply_caption = gui.add_button(
                 "Apply caption", hint="from the next token on (0.2 s), no pop"
+            )
+            self.show = gui.add_dropdown(
+                "Show",
+                SHOW_CHOICES,
+                initial_value=SHOW_CHOICES[0],
+                hint="the character, or the character retargeted onto a robot frame by frame "
+                '(needs the robots extra: pip install "motion-env[robots]")',
             )
 
     def _add_route(self, gui: viser.GuiApi) -> None:
@@ -165,7 +175,9 @@ class ControlPanel:
                 "Speed", 0.25, 2.0, 0.25, 1.0, hint="playback speed (1 = real time, 20 fps)"
             )
             self.follow = gui.add_checkbox(
-                "Follow with the camera", True, hint="the view moves along with the character"
+                "Follow with the camera",
+                True,
+                hint="the view turns about the selected character and moves with it (untick to pan)",
             )
 
     def _add_numbers(self, gui: viser.GuiApi) -> None:
@@ -183,8 +195,16 @@ class ControlPanel:
             self.save_bvh = gui.add_button(
                 "Download .bvh", hint="the episode so far on the canonical skeleton"
             )
-            self.save_csv = gui.add_button(
-                "Download robot .csv", hint="retargeted onto the Unitree G1 (50 fps)"
+            self.robot_format = gui.add_dropdown(
+                "Robot format",
+                ROBOT_KINDS,
+                initial_value=ROBOT_KINDS[0],
+                hint="csv: the project's; lafan_csv: LAFAN-style (mjlab's csv_to_npz); mjlab: its "
+                "tracking .npz; gmr: GMR's .pkl",
+            )
+            self.save_robot = gui.add_button(
+                "Download robot file",
+                hint="the episode retargeted onto the robot shown (else the Unitree G1), 50 fps",
             )
             self.record = gui.add_button("Start recording", hint="then stop: an .mp4 of the recorded frames")
 
@@ -205,18 +225,25 @@ class ControlPanel:
             (self.clear_targets, "Joint targets", lambda: session.clear_joint_targets(self.selected)),
         ):
             button.on_click(reported(title)(lambda _, change=change: change()))
-        for button, title, kind in (
-            (self.save_npz, "Download", "npz"),
-            (self.save_bvh, "Download", "bvh"),
-            (self.save_csv, "Robot CSV", "csv"),
-        ):
+        for button, kind in ((self.save_npz, "npz"), (self.save_bvh, "bvh")):
             button.on_click(
-                reported(title)(lambda event, kind=kind: studio.download(event.client, self.selected, kind))
+                reported("Download")(
+                    lambda event, kind=kind: studio.download(event.client, self.selected, kind)
+                )
             )
 
+        @self.save_robot.on_click
+        @reported("Robot file")
+        def _(event: viser.GuiEvent) -> None:
+            robot = ROBOT_CHOICES.get(self.show.value, "unitree_g1")
+            studio.download(event.client, self.selected, self.robot_format.value, robot)
+
         @self.character.on_update
-        def _(_: viser.GuiEvent) -> None:
+        def _(event: viser.GuiEvent) -> None:
             self.caption.value = session.snapshot().captions[self.selected]
+            self._show_robot(event.client)
+
+        self.show.on_update(lambda event: self._show_robot(event.client))
 
         @self.apply_caption.on_click
         @reported("Caption not applied")
@@ -260,6 +287,15 @@ class ControlPanel:
 
         self.play.on_click(lambda _: studio.set_playing(not studio.playing))
         self.step.on_click(lambda _: studio.step_once())
+
+    def _show_robot(self, client: viser.ClientHandle | None) -> None:
+        """The robot view of the selected character as the "Show" dropdown says; without the
+        robots extra the tab is told why and the character stays."""
+        try:
+            self.studio.session.set_robot(ROBOT_CHOICES.get(self.show.value), self.selected)
+        except ValueError as exc:
+            notify(client, "No robot view", str(exc), error=True)
+            self.show.value = SHOW_CHOICES[0]  # which comes back here and turns the robot off
 
     # ------------------------------------------------------------------ numbers
     def show_playing(self, playing: bool) -> None:

@@ -28,7 +28,7 @@ import numpy as np
 import viser
 
 from motion_env.motion.skeleton import FPS
-from motion_env.studio.geometry import floor_point
+from motion_env.studio.geometry import floor_point, followed_camera
 from motion_env.studio.panel import CLICK_MODES, ControlPanel, notify
 from motion_env.studio.session import StudioSession
 from motion_env.studio.view import SceneView
@@ -45,6 +45,22 @@ def _floor_of_drag(event: viser.SceneNodeDragEvent) -> np.ndarray | None:
     drag's point (which viser gives on a plane facing the camera) meets y = 0 there."""
     eye = np.asarray(event.client.camera.position, np.float64)
     return floor_point(eye, np.asarray(event.end_position, np.float64) - eye)
+
+
+def _follow_camera(camera: viser.CameraHandle, target: np.ndarray) -> None:
+    """Move one tab's camera over `target` (:func:`followed_camera`).
+
+    viser's position setter moves the look-at point with the eye, so the eye is set first and the
+    look-at second (then a no-op): set the other way round, the look-at would move twice. A tab
+    that has not reported its camera yet is left alone (viser has no camera to read for it).
+    """
+    try:
+        position, look_at = followed_camera(camera.position, camera.look_at, target)
+    except AssertionError:
+        return
+    with camera.client.atomic():
+        camera.position = position
+        camera.look_at = look_at
 
 
 class Studio:
@@ -82,7 +98,6 @@ class Studio:
         self._tick_times: deque[float] = deque(maxlen=2 * FPS)
         self._last_slip = -1e9
         self._strokes: dict[int, list[np.ndarray]] = {}  # paths being drawn, per tab
-        self._follow_at: np.ndarray | None = None
 
     # ------------------------------------------------------------------ life cycle
     @property
@@ -195,26 +210,16 @@ class Studio:
         if snap.frame % _NUMBERS_EVERY == 0:
             behind = time.perf_counter() - self._last_slip < 2.0
             self.panel.show_numbers(self.session.stats(self.panel.selected), self.fps, behind)
-        if self.panel.follow.value and snap.frame % _FOLLOW_EVERY == 0:
-            self._follow(snap.joints[self.panel.selected, 0])
-        else:
-            self._follow_at = None
+        if self.panel.follow.value and snap.frame % _FOLLOW_EVERY == 0 and self.server is not None:
+            i, robot = self.panel.selected, snap.robot
+            target = robot.root if robot is not None and robot.character == i else snap.joints[i, 0]
+            for client in self.server.get_clients().values():
+                _follow_camera(client.camera, target)
         notices = self.session.pop_notices()
         if notices and self.server is not None:
             for client in self.server.get_clients().values():
                 for text in notices:
                     notify(client, "Note", text)
-
-    def _follow(self, pelvis: np.ndarray) -> None:
-        """Move every tab's camera by what the selected character moved on the floor."""
-        here = np.array([pelvis[0], 0.0, pelvis[2]])
-        if self._follow_at is not None and self.server is not None:
-            shift = here - self._follow_at
-            for client in self.server.get_clients().values():
-                with client.atomic():
-                    client.camera.look_at = client.camera.look_at + shift
-                    client.camera.position = client.camera.position + shift
-        self._follow_at = here
 
     # ------------------------------------------------------------------ the floor
     def _on_floor_click(self, event: viser.SceneClickEvent) -> None:
@@ -289,15 +294,20 @@ class Studio:
         word = "**plausible**" if report["plausible"] else "**not plausible**"
         return f"last {seconds:g} s: {word}: {report['summary']}"
 
-    def download(self, client: viser.ClientHandle | None, index: int, kind: str) -> None:
-        """Send character `index`'s episode to `client` as a file: "npz", "bvh" or "csv" (robot)."""
+    def download(
+        self, client: viser.ClientHandle | None, index: int, kind: str, robot: str = "unitree_g1"
+    ) -> None:
+        """Send character `index`'s episode to `client` as a file: "npz", "bvh" or a robot format
+        of :data:`~motion_env.studio.keep.ROBOT_KINDS` (retargeted onto `robot`)."""
         from motion_env.studio.keep import clip_file
 
         if client is None:
             return
         motion = self.session.clip(index)
         name = f"studio_character{index + 1}_frame{self.session.frame}"
-        filename, data = clip_file(motion, kind, name)
+        if kind not in ("npz", "bvh"):
+            name += f"_{robot}"
+        filename, data = clip_file(motion, kind, name, robot)
         client.send_file_download(filename, data, save_immediately=True)
 
     def start_recording(self) -> None:

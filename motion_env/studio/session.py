@@ -29,6 +29,7 @@ from motion_env.motion.types import Motion
 from motion_env.objectives import HeightLimit
 from motion_env.studio.agent import GoalAgent
 from motion_env.studio.geometry import resample_path
+from motion_env.studio.robot_view import RobotFigure
 from motion_env.studio.route_progress import ARRIVE_RADIUS, Route
 from motion_env.studio.state import (
     Snapshot,
@@ -92,6 +93,8 @@ class StudioSession:
         self._version = 0
         self._notices: deque[str] = deque(maxlen=20)
         self.seed = self._check_seed(seed)
+        self._robot: RobotFigure | None = None  # the robot view's retargeter, of one character
+        self._robot_index, self._robot_pose = 0, None
         self._open_stream()
 
     # ------------------------------------------------------------------ episode
@@ -127,6 +130,8 @@ class StudioSession:
         self._pelvis: deque[np.ndarray] = deque(maxlen=TRAIL_FRAMES)  # (B, 2) floor x, z per frame
         self._step_ms: deque[float] = deque(maxlen=FPS)
         self._version += 1
+        if self._robot is not None:
+            self._robot.reset()
         self._tick_once()  # frame 0: something to draw before the first play
 
     def reset(self, seed: int | None = None) -> None:
@@ -153,6 +158,8 @@ class StudioSession:
         self._pelvis.append(joints[:, 0, [0, 2]].astype(np.float64))
         self._frame = int(self._stream.frame_index[0])
         frame = self._frame - 1  # the frame just emitted
+        if self._robot is not None:
+            self._robot_pose = self._robot.step(joints[self._robot_index], self._robot_index)
         for i, c in enumerate(self._chars):
             pelvis = joints[i, 0, [0, 2]].astype(np.float64)
             if c.route.advance(pelvis, frame):
@@ -196,6 +203,18 @@ class StudioSession:
     @property
     def num_characters(self) -> int:
         return len(self._chars)
+
+    def set_robot(self, robot: str | None, index: int = 0) -> None:
+        """Show character `index` retargeted onto `robot` (a known robot's name) from its next
+        frame on, or no robot (None). ValueError without the ``robots`` extra."""
+        i = check_index(index, len(self._chars))
+        same = self._robot is not None and self._robot.name == robot
+        figure = None if robot is None else self._robot if same else RobotFigure(robot)
+        with self._lock:
+            if figure is not None and (figure is not self._robot or i != self._robot_index):
+                figure.reset()  # another character, or another robot: a first frame
+            self._robot, self._robot_index = figure, i
+            self._robot_pose = None if figure is None else figure.step(self._joints[i], i)
 
     def set_caption(self, index: int, text: str) -> str:
         """Give character `index` a new caption (from its next token on); returns it, stripped."""
@@ -418,6 +437,7 @@ class StudioSession:
             captions=[c.caption for c in chars],
             version=(self._version, *(c.route.version for c in chars)),
             joint_targets=[c.targets.rows() for c in chars],
+            robot=self._robot_pose if self._robot is not None else None,
         )
 
     def stats(self, index: int = 0) -> Stats:

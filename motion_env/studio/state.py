@@ -10,6 +10,7 @@ import numpy as np
 
 from motion_env.motion.skeleton import JOINT_INDEX, JOINT_NAMES, NUM_JOINTS
 from motion_env.studio.geometry import ARENA_HALF_SIZE
+from motion_env.studio.robot_view import RobotPose
 
 __all__ = [
     "Snapshot",
@@ -42,6 +43,8 @@ class Snapshot:
             redraws them then).
         joint_targets: B arrays (K, 5) of the joint targets still drawn: frame, joint index, x, y, z
             (a target stays for a second after its frame).
+        robot: the robot view's pose (of one character), or None (no robot, or before its first
+            frame).
     """
 
     frame: int
@@ -55,6 +58,7 @@ class Snapshot:
     captions: list[str]
     version: tuple
     joint_targets: list[np.ndarray]
+    robot: RobotPose | None = None
 
 
 @dataclass(frozen=True)

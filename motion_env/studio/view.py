@@ -31,6 +31,7 @@ from motion_env.render.drawing import (
     hex_rgb,
 )
 from motion_env.studio.geometry import ARENA_HALF_SIZE, bone_colors, bone_segments, joint_colors
+from motion_env.studio.robot_view import RobotView
 from motion_env.studio.state import Snapshot
 
 __all__ = ["SceneView"]
@@ -139,6 +140,8 @@ class SceneView:
         self._obstacle_nodes: list = []
         self._drawn_version: tuple | None = None
         self._drawn_obstacles: np.ndarray = np.zeros((0, 3))
+        self.robot = RobotView(server.scene)
+        self._on_robot: int | None = None  # the character the robot stands in for
 
     def _add_character(self, i: int) -> None:
         """Character i's nodes: bones, joints, head, trail, the line to its next waypoints and, in a
@@ -180,6 +183,7 @@ class SceneView:
                 if snap.frame % _TRAIL_EVERY == 0:
                     self._trails[i].points = _polyline(_on_floor(snap.trails[i]))
                 self._draw_ahead(i, snap)
+            self._draw_robot(snap)
             if snap.version != self._drawn_version:
                 self._drawn_version = snap.version
                 for i in range(self._count):
@@ -190,6 +194,16 @@ class SceneView:
                         self._labels[i].text = f"{i + 1}: {_short(snap.captions[i])}"
                 if not np.array_equal(snap.obstacles, self._drawn_obstacles):
                     self._draw_obstacles(snap.obstacles)
+
+    def _draw_robot(self, snap: Snapshot) -> None:
+        """The robot view: the robot in place of its character's figure (the trail stays)."""
+        on = None if snap.robot is None else snap.robot.character
+        if on != self._on_robot:
+            for i in range(self._count):
+                for nodes in (self._bones, self._joints, self._heads):
+                    nodes[i].visible = i != on
+            self._on_robot = on
+        self.robot.draw(snap.robot)
 
     def _draw_ahead(self, i: int, snap: Snapshot) -> None:
         route, k = snap.routes[i], snap.next_waypoint[i]

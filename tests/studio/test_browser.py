@@ -208,7 +208,11 @@ def test_caption_and_two_waypoints_through_the_page(studio, chromium, tmp_path) 
     assert session.snapshot().reached[0]
     assert session.clip(0).meta["captions"].endswith(": a person jogs")
 
-    # A close view of where the character stands now, for the picture.
+    # A close view of where the character stands now, for the picture (paused: the camera follows
+    # the character, so a playing one would move the view on from where it is set).
+    page.get_by_role("button", name="Pause").click()
+    wait_for(page, lambda: not studio.playing, 10, "the pause")
+    page.wait_for_timeout(300)  # a frame being played ends
     pelvis = session.snapshot().joints[0, 0]
     set_camera(page, client, tuple(pelvis + (2.0, 0.9, 2.6)), tuple(pelvis * (1, 0, 1) + (0, 0.9, 0)))
     png = page.screenshot()

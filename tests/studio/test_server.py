@@ -7,6 +7,7 @@ import socket
 import time
 import urllib.request
 
+import numpy as np
 import pytest
 
 pytest.importorskip(
@@ -87,5 +88,41 @@ def test_a_floor_click_sets_a_joint_target(generator) -> None:
         assert len(studio.session.snapshot().joint_targets[0]) == 1
         studio.session.clear_joint_targets(0)
         assert len(studio.session.snapshot().joint_targets[0]) == 0
+    finally:
+        studio.stop()
+
+
+class _Camera:
+    """A tab's camera as viser keeps it: setting the eye moves the look-at point along."""
+
+    def __init__(self, position, look_at) -> None:
+        import contextlib
+        from types import SimpleNamespace
+
+        self._position, self.look_at = np.array(position, float), np.array(look_at, float)
+        self.client = SimpleNamespace(atomic=contextlib.nullcontext)
+
+    @property
+    def position(self) -> np.ndarray:
+        return self._position
+
+    @position.setter
+    def position(self, value) -> None:
+        self.look_at = self.look_at + (np.asarray(value) - self._position)
+        self._position = np.asarray(value, float)
+
+
+def test_the_camera_follows_the_character_by_default(generator) -> None:
+    from motion_env.studio.server import Studio, _follow_camera
+
+    camera = _Camera((4.0, 2.5, 5.0), (0.0, 0.9, 0.0))
+    _follow_camera(camera, np.array([1.0, 0.3, 2.0]))
+    assert camera.look_at == pytest.approx((1.0, 0.9, 2.0))  # moved once, not twice
+    assert camera.position == pytest.approx((5.0, 2.5, 7.0))
+
+    studio = Studio(generator, ["a person walks forward"], port=0)
+    studio.start()
+    try:
+        assert studio.panel.follow.value  # on for a new user
     finally:
         studio.stop()

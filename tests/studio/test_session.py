@@ -7,7 +7,14 @@ import pytest
 
 from motion_env.motion.skeleton import JOINT_INDEX
 from motion_env.motion.types import Motion
-from motion_env.studio.geometry import BONES, bone_colors, bone_segments, floor_point, resample_path
+from motion_env.studio.geometry import (
+    BONES,
+    bone_colors,
+    bone_segments,
+    floor_point,
+    followed_camera,
+    resample_path,
+)
 from motion_env.studio.keep import clip_file
 from motion_env.studio.route_progress import Route
 from motion_env.studio.session import MAX_CHARACTERS, StudioSession
@@ -20,6 +27,21 @@ def test_floor_point() -> None:
     assert floor_point((0, -1, 0), (0, -1, 0)) is None  # from under the floor
     assert floor_point((0, 2, 0), (1, -1e-3, 0)) is None  # 2 km away: off the floor
     assert floor_point((0, 2, 0), (np.nan, -1, 0)) is None
+
+
+def test_the_followed_camera_keeps_its_angle_and_distance() -> None:
+    eye, target = np.array([4.0, 2.5, 5.0]), np.array([0.0, 0.9, 0.0])
+    pelvis = np.array([0.6, 0.7, 1.4])
+    new_eye, new_target = followed_camera(eye, target, pelvis)
+    assert new_target == pytest.approx((0.6, 0.9, 1.4))  # over the character, at the chosen height
+    assert new_eye - new_target == pytest.approx(eye - target)  # the user's angle and distance
+    # Walking on, the view moves by what the character moved; a camera reported late (from before
+    # the last move) lands in the same place.
+    later = pelvis + (0.5, 0.0, 1.0)
+    moved = followed_camera(new_eye, new_target, later)
+    assert moved[0] == pytest.approx(new_eye + (0.5, 0.0, 1.0))
+    stale = followed_camera(eye, target, later)
+    assert stale[0] == pytest.approx(moved[0]) and stale[1] == pytest.approx(moved[1])
 
 
 def test_bones_and_colours() -> None:
@@ -106,6 +128,63 @@ def test_robot_csv(generator, tmp_path) -> None:
     lines = data.decode().splitlines()
     assert name == "take.csv" and any(line.startswith("# columns: ") for line in lines)
     assert abs(len([line for line in lines if not line.startswith("#")]) - 100) <= 1  # 2 s at 50 fps
+
+
+def test_robot_files_in_every_format(generator, tmp_path) -> None:
+    pytest.importorskip("mink")
+    from motion_env.retarget import load_robot_motion
+
+    session = StudioSession(generator, ["a person walks forward"], seed=0)
+    for _ in range(20):
+        session.tick()
+    for kind, name in (
+        ("lafan_csv", "take_lafan_csv.csv"),
+        ("mjlab", "take_mjlab.npz"),
+        ("gmr", "take_gmr.pkl"),
+    ):
+        filename, data = clip_file(session.clip(0), kind, "take", robot="booster_t1")
+        assert filename == name
+        path = tmp_path / filename
+        path.write_bytes(data)
+        clip = load_robot_motion(path, robot="booster_t1")
+        assert clip.robot == "booster_t1" and len(clip.qpos) > 10
+
+
+def test_the_robot_view_poses_every_body_every_frame(generator) -> None:
+    pytest.importorskip("mink", reason='the robot view needs mink: "motion-env[robots]"')
+    session = StudioSession(generator, ["a person walks forward", "a person waves"], seed=0)
+    assert session.snapshot().robot is None
+    session.set_robot("unitree_g1", index=1)
+    snap = session.snapshot()
+    pose, start = snap.robot, snap.joints[1, 0, [0, 2]]  # at once, for the frame on show
+    assert pose.robot == "unitree_g1" and pose.character == 1
+    assert np.linalg.norm(pose.root[[0, 2]] - start) < 0.1  # Y up, where its character stands
+    for _ in range(20):
+        snap = session.tick()
+        pose = snap.robot
+        assert pose.positions.shape == (31, 3) and pose.wxyz.shape == (31, 4)
+        assert np.isfinite(pose.positions).all() and 0.5 < pose.root[1] < 1.0
+        assert np.linalg.norm(pose.wxyz, axis=1) == pytest.approx(1.0)
+        # Its steps are the character's, scaled by its shorter legs.
+        walked = np.linalg.norm(snap.joints[1, 0, [0, 2]] - start)
+        assert np.linalg.norm(pose.root[[0, 2]] - snap.joints[1, 0, [0, 2]]) < 0.1 + 0.4 * walked
+    session.set_robot("booster_t1", index=0)
+    assert session.tick().robot.robot == "booster_t1"
+    session.reset()
+    assert session.snapshot().robot.character == 0  # it stays across a reset
+    session.set_robot(None)
+    assert session.tick().robot is None
+
+
+def test_robot_meshes_are_the_visual_geoms() -> None:
+    pytest.importorskip("mink")
+    from motion_env.retarget.robot import load_robot
+    from motion_env.studio.robot_view import robot_meshes
+
+    meshes = robot_meshes(load_robot("unitree_g1").model)
+    assert len(meshes) == 35  # the visual meshes, not their collision copies
+    for mesh in meshes:
+        assert mesh.faces.max() < len(mesh.vertices) and mesh.body > 0
 
 
 def test_the_a_star_agent_walks_around_an_obstacle(generator) -> None:
