@@ -34,7 +34,7 @@ import motion_env  # noqa: E402
 from motion_env.args import parse_dataclass, write_json  # noqa: E402
 from motion_env.data.captions.files import labels_for_file  # noqa: E402
 from motion_env.data.dataset import split_of  # noqa: E402
-from motion_env.retarget.quality import TARGETS, measure  # noqa: E402
+from motion_env.retarget.quality import QUALITY_BOUNDS, measure  # noqa: E402
 
 DATA = os.environ.get("MOTION_ENV_DATA") or Path(__file__).resolve().parents[2] / "shared" / "data"
 # Action groups of the real takes: group -> Bandai content labels.
@@ -117,9 +117,9 @@ def format_table(robot: str, groups: dict[str, dict]) -> str:
     bounds = ", ".join(
         f"{k} {'>=' if lo is not None else '<='} {lo if lo is not None else hi}"
         + (f" and <= {hi}" if lo is not None and hi is not None else "")
-        for k, (lo, hi) in TARGETS.items()
+        for k, (lo, hi) in QUALITY_BOUNDS.items()
     )
-    lines += ["", f"targets: {bounds}"]
+    lines += ["", f"bounds: {bounds}"]
     return "\n".join(lines)
 
 

@@ -34,13 +34,13 @@ from motion_env.retarget.limits import SOFT_LIMIT, range_violations
 from motion_env.retarget.result import RobotMotion
 from motion_env.retarget.robot import Robot, load_robot
 
-__all__ = ["MIN_TRAVEL", "STAND_CLEARANCE", "TARGETS", "measure", "self_contact_depth"]
+__all__ = ["MIN_TRAVEL", "STAND_CLEARANCE", "QUALITY_BOUNDS", "measure", "self_contact_depth"]
 
 STAND_CLEARANCE = 0.025  # metres
 MIN_TRAVEL = 0.5  # metres
 MIN_HEIGHT_STD = 0.01  # metres: below this a height "does not move" and has no correlation
 # The bounds each number should meet: (low, high), None for no bound.
-TARGETS: dict[str, tuple[float | None, float | None]] = {
+QUALITY_BOUNDS: dict[str, tuple[float | None, float | None]] = {
     "range_violations": (None, 0),
     "soft_range_violations": (None, 0),
     "penetration_cm": (None, 1.5),
