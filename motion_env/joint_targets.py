@@ -148,7 +148,12 @@ class JointTargets:
         )
 
     def _select(self, keep: np.ndarray) -> JointTargets:
-        return JointTargets(self.frames[keep], self.joints[keep], self.positions[keep])
+        # A subset of checked, sorted entries is checked and sorted: skip __post_init__ (the
+        # stream takes subsets every token).
+        out = object.__new__(JointTargets)
+        for name in ("frames", "joints", "positions"):
+            object.__setattr__(out, name, getattr(self, name)[keep])
+        return out
 
     def __eq__(self, other: Any) -> bool:
         if not isinstance(other, JointTargets):

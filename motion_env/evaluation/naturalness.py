@@ -9,7 +9,8 @@ dataset's ``index.csv``) gives up to ``per_action`` of its takes (seeded choice)
   waypoints every second where the take travels (:func:`travel_waypoints`), cut to its length;
 - stage ``vqvae``: the take's features encoded and decoded by the VQ-VAE alone, the decoded body
   placed on the take's real root path and its feet pinned as the generator does (stages 4-6 of
-  :mod:`motion_env.generation.pipeline`): what the tokenizer alone changes.
+  :mod:`motion_env.generation.pipeline`, without the physics stage): what the tokenizer alone
+  changes.
 
 Per action (and over all of them), the clips against the same real takes (definitions in
 ``docs/metrics.md``, "Naturalness"):

@@ -262,9 +262,13 @@ class MotionStream:
             isinstance(first_frame, bool) or int(first_frame) != first_frame or first_frame < 0
         ):
             raise ValueError(f"first_frame must be a frame index >= 0, got {first_frame!r}")
+        # A dense array without first_frame starts at each character's next frame; anything else
+        # means the same frames for every character and is checked once.
+        per_row = first_frame is None and targets is not None and not isinstance(targets, JointTargets)
+        checked = None if per_row else check_joint_targets(targets, None, "joint_targets", first_frame or 0)
         for i in rows:
-            first = int(self._emitted[i]) if first_frame is None else int(first_frame)
-            checked = check_joint_targets(targets, None, "joint_targets", first)
+            if per_row:
+                checked = check_joint_targets(targets, None, "joint_targets", int(self._emitted[i]))
             self._control.set_targets(int(i), checked, int(self._decoded[i]))
 
     def set_objectives(self, objectives: Sequence[Any] | None, index: int | None = None) -> None:

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import csv
 from collections import Counter
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -47,7 +47,7 @@ from motion_env.data.dataset import read_captions
 from motion_env.models.caption_adapter import CaptionAdapter, CaptionAdapterConfig
 from motion_env.models.checkpoint import atomic_torch_save
 from motion_env.motion.validation import check_above, check_at_least
-from motion_env.text.encoders import DEFAULT_TEXT_ENCODER, TextEncoder, jitter_embeddings, load_text_encoder
+from motion_env.text.encoders import DEFAULT_TEXT_ENCODER, TextEncoder, jitter_embeddings
 from motion_env.training import loop
 from motion_env.training.config import TrainConfig
 
@@ -321,15 +321,10 @@ def train_caption_adapter(
     config = config or CaptionAdapterTrainConfig()
     torch.manual_seed(config.seed)
     data_dir, out_path = Path(data_dir), Path(out_path)
-    if encoder is None:
-        encoder = load_text_encoder(config.encoder, config.encoder_weights, config.device)
-    else:
-        config = replace(config, encoder=encoder.name)
-    if target_encoder is None:
-        same = config.target_encoder == encoder.name
-        target_encoder = encoder if same else load_text_encoder(config.target_encoder, device=config.device)
-    else:
-        config = replace(config, target_encoder=target_encoder.name)
+    config, encoder = loop.with_text_encoder(config, encoder, weights=config.encoder_weights)
+    if target_encoder is None and config.target_encoder == encoder.name:
+        target_encoder = encoder  # the adapter reads the models' own encoder: load it once
+    config, target_encoder = loop.with_text_encoder(config, target_encoder, "target_encoder")
     table = label_table(data_dir, target_encoder)
     train = adapter_examples(data_dir, table, target_encoder, config.paraphrases, config.seed, config.prior)
     val = adapter_examples(

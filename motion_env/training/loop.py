@@ -54,13 +54,15 @@ def load_normalizer(data_dir: Path) -> Normalizer:
     return Normalizer(*load_stats(data_dir))
 
 
-def with_text_encoder(config: Any, text_encoder: TextEncoder | None) -> tuple[Any, TextEncoder]:
-    """The settings and the text encoder of a run: `text_encoder` when one is given (its name then
-    replaces ``config.encoder``, so that the checkpoint names the encoder actually used), else
-    ``config.encoder`` loaded on ``config.device``."""
+def with_text_encoder(
+    config: Any, text_encoder: TextEncoder | None, field: str = "encoder", weights: Any = None
+) -> tuple[Any, TextEncoder]:
+    """The settings and a text encoder of a run: `text_encoder` when one is given (its name then
+    replaces ``config.<field>``, so that the checkpoint names the encoder actually used), else
+    ``config.<field>`` loaded (from `weights`, for encoders that take them) on ``config.device``."""
     if text_encoder is None:
-        return config, load_text_encoder(config.encoder, device=config.device)
-    return replace(config, encoder=text_encoder.name), text_encoder
+        return config, load_text_encoder(getattr(config, field), weights, config.device)
+    return replace(config, **{field: text_encoder.name}), text_encoder
 
 
 # --- checkpoints ---------------------------------------------------------------------------
