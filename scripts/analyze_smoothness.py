@@ -24,6 +24,17 @@ it also checks that every clip gets the same tokens from each (it must when only
 fine-tuned). Prints a table per checkpoint and writes everything to ``--json``.
 
     python scripts/analyze_smoothness.py --checkpoints motion_env/weights/vqvae.pt,runs/vq_smooth.pt
+
+With ``--stages ACTIONS`` it finds instead where the pops of generated clips come from: the
+naturalness takes of those actions (:mod:`motion_env.evaluation.naturalness`, same choice, same
+protocol) are made again by the shipped generator, and each clip is measured after every stage of
+its placement: ``decoded`` (the decoded body relative to its root), ``composed`` (on the path and
+on the skeleton's bones), ``feet`` (the foot pinning) and ``physics``. Per clip and stage: the
+largest joint acceleration, its joint and frame, and whether it pops (over 1.5 x the real takes'
+p99.9, as ``eval natural``); the foot skating; and, per action, how far planted feet slide
+(cm per frame, frames where the decoder marks both contacts of a foot).
+
+    python scripts/analyze_smoothness.py --stages walk,walk-left,walk-right --split test
 """
 
 from __future__ import annotations
@@ -61,6 +72,8 @@ class Args:
     replay: str = "run,walk"  # comma-separated actions whose clips are replayed in MuJoCo ("": none)
     threads: int = 1  # torch CPU threads
     json: str = "runs/smoothness.json"  # where the numbers go
+    stages: str = ""  # comma-separated actions: attribute generated clips' pops to stages instead
+    per_action: int = 7  # --stages: clips per action (the naturalness evaluation's choice)
 
 
 # --- measures on one clip's world joints (T, 22, 3) ----------------------------------------
@@ -223,10 +236,138 @@ def print_table(name: str, real: dict, recon: dict, ratio: dict) -> None:
         )
 
 
+# --- where the pops of generated clips come from (--stages) --------------------------------
+
+STAGE_NAMES = ("decoded", "composed", "feet", "physics")
+
+
+def placed_stages(pipe: Any, features: np.ndarray, path: np.ndarray) -> dict[str, np.ndarray]:
+    """The joints after each stage of :meth:`Pipeline.place_clip` for decoded `features` (n, 263)
+    on a root `path` (>= n, 3): decoded (root-relative), composed, feet, physics."""
+    from motion_env.generation.feet import FootPinner
+    from motion_env.generation.physics import apply_physics
+    from motion_env.generation.recompose import local_pose_from_features
+    from motion_env.motion.skeleton import FOOT_CONTACT
+
+    n = len(features)
+    composed, _ = pipe.compose(features, path, n)
+    feet = FootPinner(1).apply(0, composed, features[:, FOOT_CONTACT])
+    physics = apply_physics(feet, features[:, FOOT_CONTACT])
+    return {
+        "decoded": local_pose_from_features(features),
+        "composed": composed,
+        "feet": feet,
+        "physics": physics,
+    }
+
+
+def planted_slide(joints: np.ndarray, contacts: np.ndarray) -> list[float]:
+    """Horizontal steps (m) of each ankle between frames where both its contacts are on."""
+    from motion_env.generation.feet import LEGS
+
+    out: list[float] = []
+    for leg, (_, _, ankle, _) in enumerate(LEGS):
+        flat = contacts[:, 2 * leg] & contacts[:, 2 * leg + 1]
+        both = flat[1:] & flat[:-1]
+        out += list(np.linalg.norm(np.diff(joints[:, ankle, [0, 2]], axis=0), axis=-1)[both])
+    return out
+
+
+def _stage_cell(m: dict[str, Any]) -> str:
+    """One stage of one clip: largest acceleration, joint, frame, POP, skating."""
+    skating = "" if m["skating"] is None else f"{m['skating']:.2f}"
+    pop = "POP" if m["pops"] else ""
+    return f"{m['max_accel']:>9.1f} j{m['joint']:<2d} f{m['frame']:<4d}{pop:>4}{skating:>5}"
+
+
+@torch.no_grad()
+def stage_pops(args: Args) -> dict[str, Any]:
+    """Per action and clip, the stages' largest accelerations, pops and skating (module docstring)."""
+    import warnings
+
+    from motion_env.evaluation.metrics import foot_skating_ratio, joint_acceleration
+    from motion_env.evaluation.naturalness import (
+        POP_FACTOR,
+        extended_path,
+        naturalness_takes,
+        travel_waypoints,
+    )
+    from motion_env.generation.generator import MotionGenerator
+    from motion_env.generation.request import check_request
+    from motion_env.motion.skeleton import FOOT_CONTACT
+    from motion_env.motion.trajectory import root_path_from_joints
+
+    actions = [a.strip() for a in args.stages.split(",") if a.strip()]
+    takes = naturalness_takes(args.data, args.split, 3)
+    rng = np.random.default_rng(0)  # NaturalnessSettings' seed: the same takes as eval natural
+    chosen = {
+        a: [ts[i] for i in sorted(rng.choice(len(ts), min(args.per_action, len(ts)), replace=False))]
+        for a, ts in takes.items()
+    }
+    pipe = MotionGenerator.from_pretrained().pipeline
+    out: dict[str, Any] = {}
+    for action in actions:
+        if action not in takes:
+            raise SystemExit(f"no action {action!r} with 3 takes in split {args.split!r}: {sorted(takes)}")
+        real_accel = np.concatenate([joint_acceleration(t.joints).ravel() for t in takes[action]])
+        pop = POP_FACTOR * float(np.percentile(real_accel, 99.9))
+        clips, slide = [], {name: [] for name in STAGE_NAMES[1:]}
+        for take in chosen[action]:
+            t_len = len(take.joints)
+            path = extended_path(root_path_from_joints(take.joints))
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                req = check_request(
+                    take.text, travel_waypoints(path), len(path), 0, path[0], "warn", None, None
+                )
+                emb = pipe.encode_text(req.texts)
+                _, paths = pipe.plan_paths(emb, req)
+            n_tok = -(-req.num_frames // pipe.rate)
+            body = pipe.decode(pipe.sample_tokens(emb, paths, n_tok, req.seed))[0]
+            stages = placed_stages(pipe, body, paths[0])
+            contacts = body[:t_len, FOOT_CONTACT] > 0.5
+            row: dict[str, Any] = {"take": take.name}
+            for name, joints in stages.items():
+                acc = joint_acceleration(joints[:t_len])
+                frame, joint = np.unravel_index(int(acc.argmax()), acc.shape)
+                row[name] = {
+                    "max_accel": float(acc.max()),
+                    "joint": int(joint),
+                    "frame": int(frame) + 1,
+                    "pops": bool(acc.max() > pop),
+                    "skating": foot_skating_ratio(joints[:t_len]) if name != "decoded" else None,
+                }
+                if name in slide:
+                    slide[name] += planted_slide(joints[:t_len], contacts)
+            clips.append(row)
+        real_skating = float(np.mean([foot_skating_ratio(t.joints) for t in chosen[action]]))
+        out[action] = {
+            "pop_threshold": pop,
+            "clips": clips,
+            "real_skating": real_skating,
+            "planted_slide_cm": {k: 100 * float(np.mean(v)) if v else None for k, v in slide.items()},
+        }
+        print(f"\n{action} (pop over {pop:.1f} m/s^2; real skating {real_skating:.3f})")
+        print(f"{'take':<40}" + "".join(f"{n:>26}" for n in STAGE_NAMES))
+        for row in clips:
+            print(f"{row['take'][:39]:<40}" + "".join(_stage_cell(row[n]) for n in STAGE_NAMES))
+        pops = {n: sum(r[n]["pops"] for r in clips) for n in STAGE_NAMES}
+        skate = {n: np.mean([r[n]["skating"] for r in clips]) / real_skating for n in STAGE_NAMES[1:]}
+        print("pops " + ", ".join(f"{n} {v}/{len(clips)}" for n, v in pops.items()))
+        print("skating / real " + ", ".join(f"{n} {v:.2f}" for n, v in skate.items()))
+        slides = out[action]["planted_slide_cm"].items()
+        print("planted feet slide (cm/frame) " + ", ".join(f"{n} {v:.2f}" for n, v in slides))
+    return out
+
+
 def main() -> None:
     args = parse_dataclass(Args, description=__doc__)
     torch.set_num_threads(args.threads)
     t0 = time.perf_counter()
+    if args.stages:
+        out = {"args": asdict(args), "stages": stage_pops(args), "seconds": time.perf_counter() - t0}
+        write_json(args.json, json.loads(json.dumps(out)))
+        return
     clips, groups = clip_groups(Path(args.data), args.split, args.min_clips)
     real = measure(clips, groups, None)
     actions = set(filter(None, (a.strip() for a in args.replay.split(","))))

@@ -78,6 +78,39 @@ def require_robot() -> Callable[[str], Path]:
     return require
 
 
+LabelledTake = tuple[str, str, str, str, np.ndarray]
+"""(name, split, action, style, joints (T + 1, 22, 3)) of a synthetic take."""
+
+
+@pytest.fixture(scope="session")
+def write_labelled_dataset() -> Callable[[Path, list[LabelledTake]], Path]:
+    """``write_labelled_dataset(root, takes)`` -> `root` made a HumanML3D-layout dataset with
+    ``index.csv`` (the layout ``motion-env data build`` writes) holding the synthetic Bandai `takes`.
+
+    A take keeps T frames of its T + 1 joints (its features need the frame after) and the caption
+    "a person does a <action>"; each split gets its ``<split>.txt``.
+    """
+    from motion_env.motion.features import joints_to_features
+
+    def write(root: Path, takes: list[LabelledTake]) -> Path:
+        for sub in ("new_joints", "new_joint_vecs", "texts"):
+            (root / sub).mkdir(parents=True)
+        rows = ["name,split,source,take,label,style,mirrored,frames,file"]
+        splits: dict[str, list[str]] = {}
+        for name, split, action, style, joints in takes:
+            np.save(root / "new_joints" / f"{name}.npy", joints[:-1].astype(np.float32))
+            np.save(root / "new_joint_vecs" / f"{name}.npy", joints_to_features(joints))
+            (root / "texts" / f"{name}.txt").write_text(f"a person does a {action}\n")
+            rows.append(f"{name},{split},bandai,{name},{action},{style},0,{len(joints) - 1},x.bvh")
+            splits.setdefault(split, []).append(name)
+        (root / "index.csv").write_text("\n".join(rows) + "\n")
+        for split, names in splits.items():
+            (root / f"{split}.txt").write_text("\n".join(names) + "\n")
+        return root
+
+    return write
+
+
 @pytest.fixture(scope="session")
 def _humanml3d_arrays(require_data: Callable[[str], Path]) -> tuple[np.ndarray, np.ndarray]:
     joints = require_data(f"humanml3d_sample/new_joints/{HUMANML3D_CLIP}.npy")

@@ -42,8 +42,6 @@ _CLASSIFIER_HELP = (
 
 
 def _add_control_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--data", required=True, help=_DATA_HELP)
-    p.add_argument("--split", default="test", help=_SPLIT_HELP)
     p.add_argument("--max-clips", type=int, default=10, help="held-out takes per setting (default 10)")
     p.add_argument("--objective-repeats", type=int, default=4, help="cases per objective (0 skips them)")
     p.add_argument(
@@ -53,12 +51,9 @@ def _add_control_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--steps", type=int, default=None, help="refinement steps (default: the generator's)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--model", default=None, help="weights directory (default: the shipped model)")
-    p.add_argument("--json", default=None, help="also write the results to this JSON file")
 
 
 def _add_captions_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--data", required=True, help=_DATA_HELP)
-    p.add_argument("--split", default="test", help=_SPLIT_HELP)
     p.add_argument(
         "--seeds", type=int, default=4, help="clips per (action, style) and caption set (default 4)"
     )
@@ -66,12 +61,9 @@ def _add_captions_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--model", default=None, help="generator weights directory (default: the shipped model)")
     p.add_argument("--classifier", default=None, help=_CLASSIFIER_HELP)
     add_caption_reader(p)
-    p.add_argument("--json", default=None, help="also write the results to this JSON file")
 
 
 def _add_natural_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--data", required=True, help=_DATA_HELP)
-    p.add_argument("--split", default="test", help=_SPLIT_HELP)
     p.add_argument("--per-action", type=int, default=7, help="takes made again per action (default 7)")
     p.add_argument("--seed", type=int, default=0, help="choice of takes, real halves, generator seed")
     p.add_argument(
@@ -85,7 +77,6 @@ def _add_natural_options(p: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     p.add_argument("--classifier", default=None, help=_CLASSIFIER_HELP)
     add_caption_reader(p)
-    p.add_argument("--json", default=None, help="also write the results to this JSON file")
 
 
 def _check_dataset(args: argparse.Namespace) -> None:
@@ -110,7 +101,10 @@ def add_eval(sub: argparse._SubParsersAction) -> None:
         ("natural", _NATURAL_HELP, _add_natural_options, run_eval_natural),
     ):
         c = esub.add_parser(name, help=help_text, description=help_text)
+        c.add_argument("--data", required=True, help=_DATA_HELP)
+        c.add_argument("--split", default="test", help=_SPLIT_HELP)
         add_options(c)
+        c.add_argument("--json", default=None, help="also write the results to this JSON file")
         add_threads(c)
         add_overwrite(c)
         c.set_defaults(run=run)

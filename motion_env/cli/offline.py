@@ -118,6 +118,12 @@ _TRAINERS = {
         "the caption adapter of a caption reader (text only: other wordings -> what the GPT and "
         "controller know)",
     ),
+    "pace": (
+        "motion_env.training.pace",
+        "PaceTrainConfig",
+        "the pace regressor (caption -> the takes' speed: untimed routes at the caption's pace; "
+        "reads the weights folder's controller space and caption adapter)",
+    ),
     "classifier": (
         "motion_env.training.classifier",
         "ClassifierTrainConfig",
@@ -209,6 +215,10 @@ def run_train(args: argparse.Namespace) -> int:
         from motion_env.training.controller import train_controller
 
         metrics = train_controller(args.data, args.out, config)
+    elif args.model == "pace":
+        from motion_env.training.pace import train_pace
+
+        metrics = train_pace(args.data, args.out, config)
     elif args.model == "classifier":
         from motion_env.training.classifier import train_classifier
 

@@ -5,12 +5,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 
 from motion_env.generation.request import check_text
 from motion_env.motion.trajectory import MAX_COORDINATE
+from motion_env.motion.validation import CheckedConfig
 
 DEFAULT_TEXT_POOL: tuple[str, ...] = (
     "a person walks forward",
@@ -39,56 +40,47 @@ OBS_BOUNDS["caption"] = 100.0
 
 
 @dataclass
-class EnvConfig:
+class EnvConfig(CheckedConfig):
     """The tunables of the motion_env environments (validated; see the env docstrings).
 
     The defaults are the ones measured for learning (README, "Learning"): normalised actions with
     a "follow the route" switch, four frames (one token, 0.2 s) per step, and a time cost.
     """
 
-    action_mode: str = "normalized"
+    action_mode: Annotated[str, ACTION_MODES] = "normalized"
     frames_per_step: int = 4
-    arrive_radius: float = 0.5
+    arrive_radius: Annotated[float, "(0, inf)"] = 0.5
     terminate_on_arrival: bool = True
-    arena_size: float = 10.0
-    snap_radius: float = 0.05
-    progress_weight: float = 1.0
-    arrival_bonus: float = 1.0
-    collision_penalty: float = 1.0
-    time_penalty: float = 0.1
-    reach: float = 3.0
+    arena_size: Annotated[float, "(0, inf)"] = 10.0
+    snap_radius: Annotated[float, "[0, inf)"] = 0.05
+    progress_weight: Annotated[float, "[0, inf)"] = 1.0
+    arrival_bonus: Annotated[float, "[0, inf)"] = 1.0
+    collision_penalty: Annotated[float, "[0, inf)"] = 1.0
+    time_penalty: Annotated[float, "[0, inf)"] = 0.1
+    reach: Annotated[float, "(0, inf)"] = 3.0
     follow_action: bool = True
-    invalid_action: str = "raise"
+    invalid_action: Annotated[str, INVALID_ACTION_MODES] = "raise"
     random_start: bool = False
     route_length: tuple[int, int] = (2, 4)
     trail_length: int = 600
 
     def __post_init__(self) -> None:
-        if self.action_mode not in ACTION_MODES:
-            raise ValueError(f"action_mode must be one of {ACTION_MODES}, got {self.action_mode!r}")
-        if self.invalid_action not in INVALID_ACTION_MODES:
-            raise ValueError(
-                f"invalid_action must be one of {INVALID_ACTION_MODES}, got {self.invalid_action!r}"
-            )
+        super().__post_init__()
         if int(self.frames_per_step) < 1 or int(self.frames_per_step) != self.frames_per_step:
-            raise ValueError(f"frames_per_step must be an integer >= 1, got {self.frames_per_step!r}")
+            raise ValueError(
+                f"EnvConfig.frames_per_step must be an integer >= 1, got {self.frames_per_step!r}"
+            )
         self.frames_per_step = int(self.frames_per_step)
-        for name in ("arrive_radius", "arena_size", "reach"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive number, got {value!r}")
-        for name in ("snap_radius", "progress_weight", "arrival_bonus", "collision_penalty", "time_penalty"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
         if not isinstance(self.follow_action, (bool, np.bool_)):
-            raise ValueError(f"follow_action must be True or False, got {self.follow_action!r}")
+            raise ValueError(f"EnvConfig.follow_action must be True or False, got {self.follow_action!r}")
         lo, hi = (int(v) for v in self.route_length)
         if not 1 <= lo <= hi:
-            raise ValueError(f"route_length must be (min, max) with 1 <= min <= max, got {self.route_length}")
+            raise ValueError(
+                f"EnvConfig.route_length must be (min, max) with 1 <= min <= max, got {self.route_length}"
+            )
         self.route_length = (lo, hi)
         if int(self.trail_length) < 1:
-            raise ValueError(f"trail_length must be >= 1, got {self.trail_length}")
+            raise ValueError(f"EnvConfig.trail_length must be >= 1, got {self.trail_length}")
 
     @property
     def action_bound(self) -> float:

@@ -23,6 +23,12 @@ batch 1, one thread; about :data:`REFERENCE_CALIBRATION_S` on the project's 2-co
 is quiet) and reports each number also as its quiet-machine equivalent: times x reference /
 calibration, rates x calibration / reference. Before/after comparisons use the equivalents.
 
+On a machine with more runnable threads than cores, wall time also counts the time this process
+waits for a core, which the calibration beside it can only partly correct. So every measurement
+is also taken in CPU time (``time.process_time``: the time this process ran, all its threads) and
+scaled by the calibration's own CPU time (``quiet_cpu``); on a quiet machine the two agree, and
+under load the CPU-time equivalent is the steadier one.
+
 This is the project's one bench; ``motion-env bench`` runs it and prints a table.
 """
 
@@ -45,11 +51,18 @@ REFERENCE_CALIBRATION_S = 0.032
 """Seconds :func:`calibration_s` takes on the project's 2-core CPU machine when it is quiet (30-34 ms)."""
 # Result keys that are rates (scaled the other way from times) and keys that are not speeds.
 _RATES = ("frames_per_s", "steps_per_s")
-_NOT_SPEED = ("runs", "frames", "batch", "steps", "episodes_reset", "num_envs", "calibration_ms")
+_NOT_SPEED = (
+    "runs", "frames", "batch", "steps", "episodes_reset", "num_envs", "calibration_ms", "calibration_cpu_ms"
+)  # fmt: skip
 
 
-def calibration_s() -> float:
-    """Seconds of the fixed calibration workload (see the module docstring), on one thread."""
+def _clock() -> tuple[float, float]:
+    """(wall, process CPU) seconds now."""
+    return time.perf_counter(), time.process_time()
+
+
+def calibration_times() -> tuple[float, float]:
+    """(wall, CPU) seconds of the fixed calibration workload (see the module docstring), on one thread."""
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
@@ -57,29 +70,46 @@ def calibration_s() -> float:
         cell = torch.nn.GRUCell(128, 384)
         w1, w2 = torch.randn(192, 768, generator=gen), torch.randn(768, 192, generator=gen)
         x, h, y = torch.randn(1, 128, generator=gen), torch.zeros(1, 384), torch.randn(32, 192, generator=gen)
-        t0 = time.perf_counter()
+        start = _clock()
         with torch.no_grad():
             for _ in range(200):
                 h = cell(x, h)
             for _ in range(50):
                 y = torch.relu(y @ w1) @ w2 * 1e-2 + y
-        return time.perf_counter() - t0
+        end = _clock()
+        return end[0] - start[0], end[1] - start[1]
     finally:
         torch.set_num_threads(threads)
 
 
-def calibrated(measure: Any, *args: Any, **kwargs: Any) -> dict[str, Any]:
-    """Run ``measure(*args, **kwargs)`` (a dict of times in ms and rates) between two calibrations;
-    the dict gains ``calibration_ms`` and ``quiet``: each speed as its quiet-machine equivalent."""
-    c0 = calibration_s()
-    result = measure(*args, **kwargs)
-    calib = (c0 + calibration_s()) / 2
-    scale = REFERENCE_CALIBRATION_S / calib
+def calibration_s() -> float:
+    """Wall seconds of the fixed calibration workload (see the module docstring), on one thread."""
+    return calibration_times()[0]
+
+
+def _scaled(result: dict[str, Any], scale: float) -> dict[str, float]:
+    """The speeds of a result dict as quiet-machine equivalents: times x scale, rates / scale."""
     quiet = {}
     for key, value in result.items():
         if isinstance(value, int | float) and not isinstance(value, bool) and key not in _NOT_SPEED:
             quiet[key] = value / scale if key in _RATES else value * scale
-    return {**result, "calibration_ms": calib * 1000.0, "quiet": quiet}
+    return quiet
+
+
+def calibrated(measure: Any, *args: Any, **kwargs: Any) -> dict[str, Any]:
+    """Run ``measure(*args, **kwargs)`` (a dict of times in ms and rates, with the same in CPU time
+    under ``cpu``) between two calibrations; the dict gains ``calibration_ms`` and
+    ``calibration_cpu_ms``, ``quiet`` (each speed as its quiet-machine equivalent) and
+    ``quiet_cpu`` (the same from CPU times)."""
+    w0, c0 = calibration_times()
+    result = measure(*args, **kwargs)
+    w1, c1 = calibration_times()
+    calib, calib_cpu = (w0 + w1) / 2, (c0 + c1) / 2
+    out = {**result, "calibration_ms": calib * 1000.0, "calibration_cpu_ms": calib_cpu * 1000.0}
+    out["quiet"] = _scaled(result, REFERENCE_CALIBRATION_S / calib)
+    if "cpu" in result:
+        out["quiet_cpu"] = _scaled(result["cpu"], REFERENCE_CALIBRATION_S / calib_cpu)
+    return out
 
 
 def _percentiles(values: list[float], qs: tuple[int, ...]) -> dict[str, float]:
@@ -92,17 +122,20 @@ def _percentiles(values: list[float], qs: tuple[int, ...]) -> dict[str, float]:
 
 
 def time_clip(generator: Any, runs: int = 10, num_frames: int = 200, warmup: int = 2) -> dict[str, float]:
-    """Latency (ms) of one clip with caption and waypoints, batch 1: median, p90, min, mean."""
+    """Latency (ms) of one clip with caption and waypoints, batch 1: median, p90, min, mean (and
+    the same in CPU time under ``cpu``)."""
     if runs < 1:
         raise ValueError(f"runs must be >= 1, got {runs}")
     for i in range(warmup):
         generator.generate(BENCH_TEXT, BENCH_WAYPOINTS, num_frames=num_frames, seed=1000 + i)
-    times = []
+    times, cpu = [], []
     for i in range(runs):
-        t0 = time.perf_counter()
+        w0, c0 = _clock()
         generator.generate(BENCH_TEXT, BENCH_WAYPOINTS, num_frames=num_frames, seed=i)
-        times.append((time.perf_counter() - t0) * 1000.0)
-    return {**_percentiles(times, (90,)), "runs": runs, "frames": num_frames}
+        w1, c1 = _clock()
+        times.append((w1 - w0) * 1000.0)
+        cpu.append((c1 - c0) * 1000.0)
+    return {**_percentiles(times, (90,)), "runs": runs, "frames": num_frames, "cpu": _percentiles(cpu, (90,))}
 
 
 def _routes(batch: int) -> list[np.ndarray]:
@@ -122,23 +155,27 @@ def time_stream(generator: Any, batch: int, frames: int = 100) -> dict[str, floa
     if batch < 1 or frames < 1:
         raise ValueError(f"batch and frames must be >= 1, got {batch} and {frames}")
     stream = generator.stream([BENCH_TEXT] * batch, _routes(batch), seed=0)
-    t0 = time.perf_counter()
+    w0, c0 = _clock()
     stream.step()  # rolls the controller's look-ahead and decodes the first token
-    first = time.perf_counter() - t0
-    times = []
+    w1, c1 = _clock()
+    first, first_cpu = w1 - w0, c1 - c0
+    times, cpu = [], []
     for _ in range(frames):
-        t0 = time.perf_counter()
+        w0, c0 = _clock()
         stream.step()
-        times.append(time.perf_counter() - t0)
-    total = float(np.sum(times))
-    return {
-        "batch": batch,
-        "frames": frames,
-        "frames_per_s": batch * frames / total,
-        "step_ms_median": float(np.median(times) * 1000.0),
-        "step_ms_p99": float(np.percentile(times, 99) * 1000.0),
-        "first_step_ms": first * 1000.0,
-    }
+        w1, c1 = _clock()
+        times.append(w1 - w0)
+        cpu.append(c1 - c0)
+
+    def summary(values: list[float], first_s: float) -> dict[str, float]:
+        return {
+            "frames_per_s": batch * frames / max(float(np.sum(values)), 1e-9),
+            "step_ms_median": float(np.median(values) * 1000.0),
+            "step_ms_p99": float(np.percentile(values, 99) * 1000.0),
+            "first_step_ms": first_s * 1000.0,
+        }
+
+    return {"batch": batch, "frames": frames, **summary(times, first), "cpu": summary(cpu, first_cpu)}
 
 
 # The two ways an agent drives the env in the bench: following its route (world points, the
@@ -166,18 +203,22 @@ def time_env(generator: Any, steps: int = 1000, agent: str = "route") -> dict[st
     options = {"text": BENCH_TEXT, "waypoints": [[0.0, 3.0], [3.0, 6.0], [6.0, 6.0], [6.0, 0.0]]}
     _, info = env.reset(seed=0, options=options)
     rng = np.random.default_rng(0)
-    times, resets = [], 0
+    times, cpu, resets = [], [], 0
     while len(times) < steps:
         action = _agent_action(agent, info, rng, env.action_space.shape)
-        t0 = time.perf_counter()
+        w0, c0 = _clock()
         _, _, terminated, truncated, info = env.step(action)
-        times.append((time.perf_counter() - t0) * 1000.0)
+        w1, c1 = _clock()
+        times.append((w1 - w0) * 1000.0)
+        cpu.append((c1 - c0) * 1000.0)
         if terminated or truncated:
             resets += 1
             _, info = env.reset(options=options)
     env.close()
     result = {**_percentiles(times, (90, 99)), "steps": steps, "episodes_reset": resets, "agent": agent}
     result["steps_per_s"] = 1000.0 / result["mean"]
+    result["cpu"] = _percentiles(cpu, (90, 99))
+    result["cpu"]["steps_per_s"] = 1000.0 / max(result["cpu"]["mean"], 1e-9)
     return result
 
 
@@ -204,17 +245,19 @@ def vector_throughput(
     shape = envs.action_space.shape
     for _ in range(warmup):
         _, _, _, _, infos = envs.step(_agent_action(agent, infos, rng, shape))
-    start = time.perf_counter()
+    w0, c0 = _clock()
     for _ in range(steps):
         _, _, _, _, infos = envs.step(_agent_action(agent, infos, rng, shape))
-    elapsed = time.perf_counter() - start
+    w1, c1 = _clock()
     envs.close()
+    elapsed, cpu = w1 - w0, max(c1 - c0, 1e-9)
     return {
         "num_envs": num_envs,
         "agent": agent,
         "steps": steps,
         "ms_per_step": 1000.0 * elapsed / steps,
         "frames_per_s": num_envs * steps / elapsed,
+        "cpu": {"ms_per_step": 1000.0 * cpu / steps, "frames_per_s": num_envs * steps / cpu},
     }
 
 
@@ -276,15 +319,21 @@ def run_bench(
 
 
 def _row(
-    label: str, median: float, tail: float | None, unit: str, digits: int = 1, quiet: float | None = None
+    label: str,
+    median: float,
+    tail: float | None,
+    unit: str,
+    digits: int = 1,
+    quiet: tuple[float | None, float | None] = (None, None),
 ) -> str:
     tail_text = "" if tail is None else f"{tail:.{digits}f}"
-    quiet_text = "" if quiet is None else f"{quiet:.{digits}f}"
-    return f"{label:<44}{median:>10.{digits}f}{tail_text:>10}{quiet_text:>12}{unit:>10}"
+    quiet_text, cpu_text = ("" if q is None else f"{q:.{digits}f}" for q in quiet)
+    return f"{label:<44}{median:>10.{digits}f}{tail_text:>10}{quiet_text:>12}{cpu_text:>12}{unit:>10}"
 
 
-def _quiet(result: dict[str, Any], key: str) -> float | None:
-    return result.get("quiet", {}).get(key)
+def _quiet(result: dict[str, Any], key: str) -> tuple[float | None, float | None]:
+    """(wall-time, CPU-time) quiet-machine equivalents of one speed of a result."""
+    return result.get("quiet", {}).get(key), result.get("quiet_cpu", {}).get(key)
 
 
 def format_results(results: dict[str, Any]) -> str:
@@ -293,7 +342,10 @@ def format_results(results: dict[str, Any]) -> str:
     head = f"model: {results['model']}{' (UNTRAINED)' if results['untrained'] else ''}"
     head += f"   device: {results['device']}   cpu: {hw['cpu']} x{hw['cpu_count']}"
     head += f", torch threads {hw['torch_threads']}" + (f"   gpu: {hw['gpu']}" if "gpu" in hw else "")
-    lines = [head, "", f"{'measurement':<44}{'median':>10}{'p90/p99':>10}{'quiet equiv.':>12}{'unit':>10}"]
+    columns = (
+        f"{'measurement':<44}{'median':>10}{'p90/p99':>10}{'quiet equiv.':>12}{'cpu equiv.':>12}{'unit':>10}"
+    )
+    lines = [head, "", columns]
     c = results["clip_latency_ms"]
     label = f"clip latency ({c['frames']} frames, batch 1, {c['runs']} runs)"
     lines.append(_row(label, c["median"], c["p90"], "ms", quiet=_quiet(c, "median")))
@@ -337,6 +389,12 @@ def format_results(results: dict[str, Any]) -> str:
             f"quiet equiv.: the number on a quiet machine (calibration workload {min(calib):.0f}-"
             f"{max(calib):.0f} ms here beside the measurements, {REFERENCE_CALIBRATION_S * 1000:.0f} ms "
             "when quiet; the p99 column's equivalent for env steps)"
+        )
+    calib_cpu = [r["calibration_cpu_ms"] for r in _measurements(results) if "calibration_cpu_ms" in r]
+    if calib_cpu:
+        lines.append(
+            f"cpu equiv.: the same from this process's CPU time (calibration {min(calib_cpu):.0f}-"
+            f"{max(calib_cpu):.0f} ms of CPU): steadier when the machine has more runnable threads than cores"
         )
     return "\n".join(lines)
 

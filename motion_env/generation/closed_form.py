@@ -3,39 +3,48 @@
 The refinement (:mod:`motion_env.generation.refine`) brings the generated body close to its
 targets by optimising what the generator produces; this module finishes the job exactly:
 
-- :func:`implied_route`: timed waypoints where targets put the body (for targets without a route);
-- :func:`bend_root`: the root path bent (as the waypoint snap bends it) so that the pelvis passes
-  its targets exactly and the body's other targeted joints line up horizontally;
-- :func:`detour`: the root path bent around :class:`~motion_env.objectives.KeepOut` cylinders and
-  pushed inside :class:`~motion_env.objectives.StayInside` polygons, by the body's reach;
-- :func:`solve_limbs`: closed-form IK on the limb chains, in order: pelvis height (head and pelvis
-  height limits; the legs keep the feet where they were), spine (head targets: a two-bone solve
-  pelvis - spine3 - head), legs (ankle and toe targets; feet planted elsewhere stay planted),
-  arms (wrist targets). Every bone keeps its length.
+- the root path bent towards the targets and around the objectives:
+  :mod:`motion_env.generation.root_bending`;
+- :func:`solve_limbs`: closed-form IK on the limb chains, in order: pelvis height (pelvis targets,
+  head and pelvis height limits, the height a head target asks for; the legs keep the feet where
+  they were), spine (head targets: the upper body leans about the pelvis), legs (ankle and toe
+  targets; feet planted elsewhere stay planted), arms (wrist targets). Every bone keeps its length.
 
 A correction at a targeted frame reaches its neighbours through :func:`residual_field`: linear
 between targets up to GAP frames apart, faded in and out over FADE frames (a smoothstep) elsewhere,
 and held constant while a foot is planted, so nothing pops and a planted foot does not slide.
 :func:`causal_field` is the stream's version: it needs no frame after the one being corrected.
+
+Smoothness (measured with ``scripts/measure_refine_smoothness.py``: a corrected clip's largest
+joint acceleration against the same clip's): a two-bone chain solved near full extension or
+folded flat moves its middle joint by far more than its end moves (a straight leg lowered 5 mm
+bends its knee 4 cm), so :func:`_two_bone` keeps the middle joint on the side it bent to,
+measured against the chain's own axis while the chain is open and as close as it can stay to
+where it was while it is folded, and reaches the last SOFT_LEG / SOFT_ARM metres beyond the
+chain's own length softly (the end stops a few millimetres short instead of snapping the chain
+straight); a head target is met by the pelvis height and a lean of the upper body about the
+pelvis (not by bending the nearly straight spine, whose middle swings with every centimetre the
+head's distance to the pelvis changes); the knees bend the way the body faces (not the toes,
+which turn as a foot lifts).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from motion_env.generation.feet import LEGS, two_bone_ik
-from motion_env.generation.recompose import route_anchors, snap_to_waypoints
+from motion_env.generation.feet import LEGS
 from motion_env.motion.skeleton import JOINT_NAMES, NUM_JOINTS
 
 __all__ = [
+    "MARGIN",
+    "PELVIS",
+    "smoothstep",
     "ARMS",
     "FADE",
     "GAP",
     "MISS_TOLERANCE",
     "causal_field",
-    "detour",
     "solve_limbs",
-    "implied_route",
     "limit_bounds",
     "residual_field",
     "target_errors",
@@ -47,16 +56,21 @@ GAP = 2 * FADE
 """Targets at most this many frames apart are joined by a linear correction instead of two fades."""
 MISS_TOLERANCE = 0.02
 """Metres: a target farther than this from its joint in the finished clip is reported as missed."""
-ROUTE_SPACING = 20
-"""Frames between the timed waypoints :func:`implied_route` gives the path controller."""
 RAMP = 0.5
 """Metres: how much looser a height limit is FADE frames before (and after) the frames it covers."""
 MARGIN = 0.02
 """Metres of clearance the closed-form finish keeps inside limits and outside KeepOut cylinders."""
+SOFT_LEG, SOFT_ARM = 0.01, 0.03
+"""Metres before full extension where a leg's (arm's) IK starts to reach its target softly."""
+FOLD = (0.15, 0.45)
+"""Chain openings (end-to-root distance over the chain's length) between which :func:`_two_bone`
+turns from keeping the middle joint where it was (folded) to keeping its side (open)."""
+HEAD_DROP, HEAD_RISE = 0.3, 0.03
+"""Metres the pelvis goes down (up) at most so that a head target keeps the spine's length."""
 
 PELVIS, SPINE3, HEAD = 0, 9, 15
 ARMS: tuple[tuple[int, int, int], ...] = ((16, 18, 20), (17, 19, 21))  # shoulder, elbow, wrist
-LOWER_SPINE = (3, 6)  # rotate with the pelvis -> spine3 segment
+LOWER_SPINE = (3, 6)  # between the pelvis and spine3
 UPPER_BODY = (12, 13, 14, 15, 16, 17, 18, 19, 20, 21)  # hang from spine3
 LEG_JOINTS = tuple(j for leg in LEGS for j in leg[1:])  # knees, ankles, toes: they keep the floor
 PELVIS_MOVED = (0, 1, 2, 3, 6, 9, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21)  # move with the pelvis height
@@ -64,7 +78,7 @@ SOLVED = (PELVIS, HEAD, 7, 8, 10, 11, 20, 21)  # joints with a closed-form finis
 _VERTICAL = set(PELVIS_MOVED) - {20, 21, 18, 19}  # height limits met by moving the pelvis
 
 
-def _smoothstep(x: np.ndarray) -> np.ndarray:
+def smoothstep(x: np.ndarray) -> np.ndarray:
     x = np.clip(x, 0.0, 1.0)
     return x * x * (3.0 - 2.0 * x)
 
@@ -115,8 +129,8 @@ def residual_field(
     apart = ~exact & ~joined
     fade_out = apart & has_prev
     fade_in = apart & has_next
-    out[fade_out] += (1 - _smoothstep((t_all - p)[fade_out] / fade))[:, None] * res[p[fade_out]]
-    out[fade_in] += (1 - _smoothstep((n - t_all)[fade_in] / fade))[:, None] * res[n[fade_in]]
+    out[fade_out] += (1 - smoothstep((t_all - p)[fade_out] / fade))[:, None] * res[p[fade_out]]
+    out[fade_in] += (1 - smoothstep((n - t_all)[fade_in] / fade))[:, None] * res[n[fade_in]]
     out[exact] = res[t_all[exact]]
     return out
 
@@ -144,11 +158,11 @@ def causal_field(
             last = (last[0] + 1, last[1])
         fading = np.zeros(3)
         if last is not None and last[0] < FADE:
-            fading = (1 - _smoothstep(np.array(last[0] / FADE))) * last[1]
+            fading = (1 - smoothstep(np.array(last[0] / FADE))) * last[1]
         ahead = np.flatnonzero(known[t : t + FADE + 1])
         w = 0.0
         if len(ahead):
-            w = 1.0 if ahead[0] == 0 else float(_smoothstep(np.array(1.0 - ahead[0] / (FADE + 1))))
+            w = 1.0 if ahead[0] == 0 else float(smoothstep(np.array(1.0 - ahead[0] / (FADE + 1))))
             out[t] = (1 - w) * (current[t] + fading) + w * target[t + int(ahead[0])]
         else:
             out[t] = current[t] + fading
@@ -159,143 +173,6 @@ def causal_field(
 
 # ----------------------------------------------------------------------------------------------
 # The root path
-# ----------------------------------------------------------------------------------------------
-
-
-def implied_route(targets: np.ndarray, spacing: int = ROUTE_SPACING) -> np.ndarray | None:
-    """Timed waypoints (K, 3) where the targets put the body: the pelvis target's x, z where there
-    is one, else the mean x, z of the frame's targeted joints; one every `spacing` frames at most,
-    and the last targeted frame. None when no frame after 0 has a target."""
-    known = ~np.isnan(targets[..., 0])  # (T, 22)
-    frames = np.flatnonzero(known.any(axis=1))
-    frames = frames[frames > 0]
-    if not len(frames):
-        return None
-    keep, last = [], -spacing
-    for f in frames:
-        if f - last >= spacing:
-            keep.append(int(f))
-            last = f
-    if keep[-1] != frames[-1]:
-        if frames[-1] - keep[-1] < spacing // 2:
-            keep[-1] = int(frames[-1])
-        else:
-            keep.append(int(frames[-1]))
-    rows = []
-    for f in keep:
-        xz = (
-            targets[f, PELVIS, [0, 2]] if known[f, PELVIS] else np.nanmean(targets[f, known[f]][:, [0, 2]], 0)
-        )
-        rows.append([xz[0], xz[1], f])
-    return np.array(rows, np.float32)
-
-
-def bend_root(
-    path: np.ndarray, joints: np.ndarray, targets: np.ndarray, route: np.ndarray | None, sigma: float = 6.0
-) -> np.ndarray:
-    """The root path bent so the pelvis meets its targets and the other targeted joints line up.
-
-    Args:
-        path: (n, 3) root path the body `joints` was composed on (frame 0 = the start).
-        joints: (>= T, 22, 3) the body composed on it.
-        targets: (T, 22, 3) joint targets, NaN = free.
-        route: the planned route the path was snapped through (its waypoints keep their frames).
-        sigma: frames; the horizontal residual of the non-pelvis targets is smoothed over this
-            (Gaussian, between targeted frames), so a dense target's step-by-step sway stays in
-            the body, for the refinement and the IK, rather than in the path.
-
-    Returns:
-        (n, 3) float32 path through the pelvis targets (exactly) and shifted by the smoothed
-        residual of the other targets (PCHIP between targeted frames, held after the last).
-    """
-    t_len = targets.shape[0]
-    known = ~np.isnan(targets[..., 0])
-    pelvis = known[:, PELVIS]
-    others = known.copy()
-    others[:, PELVIS] = False
-    frames = np.flatnonzero(others.any(axis=1) & ~pelvis)
-    res = np.zeros((t_len, 2))
-    if len(frames):
-        diff = np.where(others[..., None], targets[..., [0, 2]] - joints[:t_len, :, [0, 2]], 0.0)
-        mean = diff.sum(1) / np.maximum(others.sum(1), 1)[:, None]
-        w = np.exp(-0.5 * ((frames[:, None] - frames[None, :]) / sigma) ** 2)
-        res[frames] = (w @ mean[frames]) / w.sum(1, keepdims=True)
-    pf = np.flatnonzero(pelvis)
-    res[pf] = targets[pf, PELVIS][:, [0, 2]] - path[pf, :2]
-    anchors = {int(f): res[f] for f in np.concatenate([frames, pf])}
-    if route is not None:
-        for _, _, f in route_anchors(path, route):
-            anchors.setdefault(int(f), np.zeros(2))
-    if not anchors:
-        return path
-    keys = sorted(anchors)
-    wp = np.array([[*(path[k, :2] + anchors[k]), k] for k in keys], np.float64)
-    return snap_to_waypoints(path, wp, keep_start=True)
-
-
-def detour(path: np.ndarray, joints: np.ndarray, objectives: list, margin: float = MARGIN) -> np.ndarray:
-    """The root path bent around KeepOut cylinders and pushed inside StayInside polygons.
-
-    The body's reach at each frame (the farthest joint from the pelvis, horizontally, of the body
-    `joints` composed on `path`) is added to each cylinder's radius: a pelvis outside the grown
-    circle keeps every joint out. A stretch of path that enters it is replaced by an arc around
-    it, from the entry to the exit, on the side the path passes closest. A frame where a joint
-    leaves a polygon moves the pelvis inwards by as much (faded in and out around it).
-    """
-    from motion_env.objectives import KeepOut, StayInside
-
-    out = np.array(path, np.float64)
-    n = min(len(out), len(joints))
-    reach = np.linalg.norm(joints[:n, :, [0, 2]] - joints[:n, :1, [0, 2]], axis=-1).max(axis=1)
-    for obj in objectives:
-        if isinstance(obj, KeepOut):
-            rows = np.zeros(len(out), bool)
-            start, stop = obj.frames or (0, len(out))
-            rows[start:stop] = True
-            c = np.asarray(obj.center)
-            grown = np.full(len(out), obj.radius + margin)
-            grown[:n] += reach
-            grown[n:] += reach[-1]
-            rel = out[:, :2] - c
-            inside = rows & (np.linalg.norm(rel, axis=1) < grown)
-            edges = np.flatnonzero(np.diff(np.concatenate([[0], inside.astype(int), [0]])))
-            for a, b in zip(edges[::2], edges[1::2], strict=True):
-                a0, b0 = max(a - 1, 0), min(b, len(out) - 1)
-                ang_a = np.arctan2(rel[a0, 1], rel[a0, 0])
-                ang_b = np.arctan2(rel[b0, 1], rel[b0, 0])
-                close = a + int(np.argmin(np.linalg.norm(rel[a:b], axis=1)))
-                side = np.arctan2(rel[close, 1], rel[close, 0])
-                # The arc from entry to exit that passes the side of the closest approach.
-                sweep = (ang_b - ang_a) % (2 * np.pi)
-                via = (side - ang_a) % (2 * np.pi)
-                if via > sweep:
-                    sweep -= 2 * np.pi
-                t = np.arange(a, b)
-                frac = (t - a0 + 1e-9) / max(b0 - a0, 1)
-                ang = ang_a + sweep * frac
-                radius = np.maximum(np.linalg.norm(rel[t], axis=1), grown[t])
-                out[t, :2] = c + radius[:, None] * np.stack([np.cos(ang), np.sin(ang)], axis=1)
-        elif isinstance(obj, StayInside):
-            j = np.array(joints[:n], np.float64)
-            j[..., [0, 2]] += (out[:n, :2] - j[:, 0, [0, 2]])[:, None]
-            a_pts, normals = obj.edges()
-            rows = np.zeros(n, bool)
-            start, stop = obj.frames or (0, n)
-            rows[start:stop] = True
-            shift = np.zeros((n, 2))
-            for _ in range(3):
-                xz = j[..., [0, 2]] + shift[:, None]
-                inward = ((xz[..., None, :] - a_pts) * normals).sum(-1)  # (n, J, K)
-                worst = inward.min(axis=1)  # (n, K): the farthest joint past each edge
-                need = np.clip(margin - worst, 0.0, None) * rows[:, None]
-                shift += (need[..., None] * normals).sum(1)
-            known = np.abs(shift).sum(1) > 0
-            out[:n, :2] += residual_field(known, shift)
-    return out.astype(np.float32)
-
-
-# ----------------------------------------------------------------------------------------------
-# The closed-form finish
 # ----------------------------------------------------------------------------------------------
 
 
@@ -310,6 +187,79 @@ def _shortest_arc(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     k[:, 1, 0], k[:, 2, 0], k[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
     scale = 1.0 / np.maximum(1.0 + c, 1e-6)
     return np.eye(3) + k + (k @ k) * scale[:, None, None]
+
+
+def _two_bone(
+    root: np.ndarray,
+    mid: np.ndarray,
+    end: np.ndarray,
+    target: np.ndarray,
+    hint: np.ndarray | None = None,
+    soft: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Two-bone IK per frame (root fixed, bone lengths kept, the end moved to `target`) whose middle
+    joint moves as smoothly as the target: all (N, 3); returns (new middle, new end).
+
+    The middle joint keeps the side it bent to: measured against the chain's own root-end axis
+    while the chain is open (as :func:`~motion_env.generation.feet.two_bone_ik`: against the new
+    axis a nearly straight chain's side is noise), as close to where it was as it can stay while
+    the chain is folded (end near the root, where the axis itself turns with every millimetre the
+    end moves), blended between the FOLD openings. `hint` (e.g. the way the body faces) adds a
+    5 cm bias, so a straight chain bends that way. Within `soft` metres of full extension, a
+    target beyond where the end already was is reached softly (exponentially): the end stops a
+    few millimetres short rather than snapping the chain straight (0: exact, clamped).
+    """
+    l1 = np.linalg.norm(mid - root, axis=-1)
+    l2 = np.linalg.norm(end - mid, axis=-1)
+    to = target - root
+    d = np.linalg.norm(to, axis=-1)
+    u = to / np.maximum(d, 1e-9)[:, None]
+    lo, hi = np.abs(l1 - l2) + 1e-4, l1 + l2 - 1e-4
+    chain = end - root
+    d0 = np.linalg.norm(chain, axis=-1)
+    if soft > 0:
+        # Softened only beyond where the end was, so an unmoved chain stays exactly as it was.
+        start = np.maximum(np.minimum(d0, hi - 1e-4), hi - soft)
+        room = np.maximum(hi - start, 1e-6)
+        excess = np.clip((d - start) / room, 0.0, 50.0)
+        d = np.where(d > start, start + room * (1.0 - np.exp(-excess)), d)
+    d = np.clip(d, lo, hi)
+    axis0 = chain / np.maximum(d0, 1e-9)[:, None]
+    bend = (mid - root) - ((mid - root) * axis0).sum(-1, keepdims=True) * axis0
+    if hint is not None:
+        bend = bend + 0.05 * hint / np.maximum(np.linalg.norm(hint, axis=-1, keepdims=True), 1e-9)
+    side = bend - (bend * u).sum(-1, keepdims=True) * u  # open: the side it bent to
+    near = (mid - root) - ((mid - root) * u).sum(-1, keepdims=True) * u  # folded: where it was
+    side /= np.maximum(np.linalg.norm(side, axis=-1, keepdims=True), 1e-12)
+    near /= np.maximum(np.linalg.norm(near, axis=-1, keepdims=True), 1e-12)
+    w = smoothstep((d0 / np.maximum(l1 + l2, 1e-9) - FOLD[0]) / (FOLD[1] - FOLD[0]))[:, None]
+    pole = w * side + (1.0 - w) * near
+    pole_n = np.linalg.norm(pole, axis=-1, keepdims=True)
+    # A straight chain with no hint has no bend plane: bend along the original second bone.
+    fallback = (end - mid) - ((end - mid) * u).sum(-1, keepdims=True) * u
+    pole = np.where(pole_n > 1e-6, pole / np.maximum(pole_n, 1e-12), fallback)
+    pole /= np.maximum(np.linalg.norm(pole, axis=-1, keepdims=True), 1e-12)
+    a = (l1**2 - l2**2 + d**2) / (2 * d)
+    h = np.sqrt(np.maximum(l1**2 - a**2, 0.0))
+    return root + a[:, None] * u + h[:, None] * pole, root + d[:, None] * u
+
+
+def _rotvec(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N, 3) rotation vectors (axis x angle) turning the directions of `a` onto those of `b`."""
+    a = a / np.maximum(np.linalg.norm(a, axis=-1, keepdims=True), 1e-9)
+    b = b / np.maximum(np.linalg.norm(b, axis=-1, keepdims=True), 1e-9)
+    axis = np.cross(a, b)
+    sin = np.linalg.norm(axis, axis=-1, keepdims=True)
+    angle = np.arctan2(sin, (a * b).sum(-1, keepdims=True))
+    return axis / np.maximum(sin, 1e-12) * angle
+
+
+def _rotate(v: np.ndarray, rotvec: np.ndarray) -> np.ndarray:
+    """(N, 3) vectors turned by (N, 3) rotation vectors (Rodrigues)."""
+    angle = np.linalg.norm(rotvec, axis=-1, keepdims=True)
+    k = rotvec / np.maximum(angle, 1e-12)
+    cos, sin = np.cos(angle), np.sin(angle)
+    return v * cos + np.cross(k, v) * sin + k * (k * v).sum(-1, keepdims=True) * (1 - cos)
 
 
 def _ramped(low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -356,13 +306,27 @@ def _solve_pelvis_height(j: np.ndarray, targets: np.ndarray, low: np.ndarray, hi
     pelvis = ~np.isnan(targets[:, PELVIS, 1])
     need[pelvis] = targets[pelvis, PELVIS, 1] - j[pelvis, PELVIS, 1]
     known |= pelvis
+    # A head target (where no pelvis target or limit says otherwise): the pelvis height at which
+    # the head's distance to the pelvis is the spine's own, so the spine only leans (stage 2).
+    head = ~np.isnan(targets[:, HEAD, 1]) & ~known
+    if head.any():
+        p, goal = j[head, PELVIS], targets[head, HEAD]
+        spine = np.linalg.norm(j[head, HEAD] - p, axis=-1)
+        across = np.linalg.norm((goal - p)[:, [0, 2]], axis=-1)
+        dy = goal[:, 1] - p[:, 1] - np.sqrt(np.maximum(spine**2 - across**2, 0.0))
+        need[head] = np.clip(dy, -HEAD_DROP, HEAD_RISE)
+        known |= head
     if known.any():
         dy = residual_field(known, need[:, None])[:, 0]
         j[:, list(PELVIS_MOVED), 1] += dy[:, None]
 
 
 def _solve_spine(j: np.ndarray, targets: np.ndarray) -> None:
-    """Stage 2: head targets, a two-bone solve pelvis - spine3 - head; in place."""
+    """Stage 2: head targets, the upper body (spine and all above) leaning about the pelvis; in place.
+
+    Stage 1 put the pelvis at the height where the target is as far from it as the head is, so
+    the lean meets the target (a target lower than HEAD_DROP, or higher than HEAD_RISE, is missed
+    by the difference and reported)."""
     known = ~np.isnan(targets[:, HEAD, 0])
     if not known.any():
         return
@@ -370,17 +334,10 @@ def _solve_spine(j: np.ndarray, targets: np.ndarray) -> None:
     rows = np.flatnonzero(np.abs(field).sum(1) > 1e-9)
     if not len(rows):
         return
-    p, s3, h = j[rows, PELVIS], j[rows, SPINE3], j[rows, HEAD]
-    across = j[rows, 1] - j[rows, 2]  # left hip - right hip
-    forward = np.cross(across, np.array([0.0, 1.0, 0.0]))
-    new_s3, new_h = two_bone_ik(p, s3, h, h + field[rows], -forward)  # a slouch rather than an arch
-    r1 = _shortest_arc(s3 - p, new_s3 - p)
-    r2 = _shortest_arc(h - s3, new_h - new_s3)
-    for k in LOWER_SPINE:
-        j[rows, k] = p + np.einsum("nij,nj->ni", r1, j[rows, k] - p)
-    for k in UPPER_BODY:
-        j[rows, k] = new_s3 + np.einsum("nij,nj->ni", r2, j[rows, k] - s3)
-    j[rows, SPINE3] = new_s3
+    p, h = j[rows, PELVIS], j[rows, HEAD]
+    lean = _shortest_arc(h - p, h + field[rows] - p)
+    for k in (*LOWER_SPINE, SPINE3, *UPPER_BODY):
+        j[rows, k] = p + np.einsum("nij,nj->ni", lean, j[rows, k] - p)
 
 
 def _solve_legs(
@@ -412,12 +369,12 @@ def _solve_legs(
         )
         if not len(moved):
             continue
-        toes = before[moved, toe] - before[moved, ankle]
-        toes[:, 1] = 0.0
+        # A knee bends the way the body faces (the toes turn as the foot lifts: the knee flipped).
+        facing = np.cross(before[moved, 1] - before[moved, 2], np.array([0.0, 1.0, 0.0]))
         # The leg as it was, carried along with its hip (so the IK reads the true bone lengths).
         carry = j[moved, hip] - before[moved, hip]
         knee0, ankle0 = before[moved, knee] + carry, before[moved, ankle] + carry
-        new_knee, new_ankle = two_bone_ik(j[moved, hip], knee0, ankle0, want[moved], toes)
+        new_knee, new_ankle = _two_bone(j[moved, hip], knee0, ankle0, want[moved], facing, SOFT_LEG)
         new_foot = before[moved, toe] - before[moved, ankle]
         both = has_ankle[moved] & has_toe[moved]
         if both.any():  # the foot turned towards its toe target, its length kept
@@ -428,7 +385,8 @@ def _solve_legs(
 
 
 def _solve_arms(j: np.ndarray, targets: np.ndarray, low: np.ndarray, high: np.ndarray) -> None:
-    """Stage 4: wrist targets and wrist height limits, a two-bone solve shoulder - elbow - wrist."""
+    """Stage 4: wrist targets and wrist height limits, a two-bone solve shoulder - elbow - wrist
+    (:func:`_two_bone`) on a correction faded as a turn about the shoulder and a change of reach."""
     for shoulder, elbow, wrist in ARMS:
         goal = targets[:, wrist].copy()
         y = j[:, wrist, 1]
@@ -438,10 +396,20 @@ def _solve_arms(j: np.ndarray, targets: np.ndarray, low: np.ndarray, high: np.nd
         known = ~np.isnan(goal[:, 0])
         if not known.any():
             continue
-        field = residual_field(known, np.nan_to_num(goal - j[:, wrist]))
+        # The correction as a turn about the shoulder and a change of reach, each faded in time:
+        # the wrist sweeps round the shoulder rather than cutting past it (a straight cut from a
+        # folded arm's wrist to a target passes by the shoulder, where the elbow swung 30 cm in
+        # a frame).
+        rel = j[:, wrist] - j[:, shoulder]
+        want = np.nan_to_num(goal) - j[:, shoulder]
+        reach = np.linalg.norm(want, axis=1) - np.linalg.norm(rel, axis=1)
+        field = residual_field(known, np.concatenate([_rotvec(rel, want), reach[:, None]], 1))
         rows = np.flatnonzero(np.abs(field).sum(1) > 1e-9)
-        new_elbow, new_wrist = two_bone_ik(
-            j[rows, shoulder], j[rows, elbow], j[rows, wrist], j[rows, wrist] + field[rows]
+        dist = np.linalg.norm(rel[rows], axis=1)
+        turned = _rotate(rel[rows] / np.maximum(dist, 1e-9)[:, None], field[rows, :3])
+        aim = j[rows, shoulder] + turned * (dist + field[rows, 3])[:, None]
+        new_elbow, new_wrist = _two_bone(
+            j[rows, shoulder], j[rows, elbow], j[rows, wrist], aim, soft=SOFT_ARM
         )
         j[rows, elbow], j[rows, wrist] = new_elbow, new_wrist
 

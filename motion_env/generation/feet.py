@@ -8,15 +8,62 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["FOOT_BLEND", "FOOT_MAX_OFFSET", "LEGS", "FootPinner", "two_bone_ik"]
+__all__ = [
+    "FOOT_BLEND",
+    "FOOT_MAX_OFFSET",
+    "FOOT_SOFTNESS",
+    "FOOT_STRETCH",
+    "LEGS",
+    "FootPinner",
+    "release_fade",
+    "soft_reach",
+    "two_bone_ik",
+]
 
 # Legs as (hip, knee, ankle, toe).
 LEGS: tuple[tuple[int, int, int, int], ...] = ((1, 4, 7, 10), (2, 5, 8, 11))
-# Frames over which a released foot's correction fades out.
-FOOT_BLEND = 3
+# Frames over which a released foot's correction fades out (:func:`release_fade`).
+FOOT_BLEND = 6
 # The largest correction (m) a pinned foot gets; a foot the body drags farther (its stride does
-# not match the path's speed) slides along with it, so the leg never snaps back from afar.
-FOOT_MAX_OFFSET = 0.25
+# not match the path's speed) slides along with it, so the leg never snaps back from afar. (0.25
+# until the leg's reach was made soft: decoded sidesteps and backward walks drag their planted
+# feet farther, and held 35 cm they slide less, with no more pops.)
+FOOT_MAX_OFFSET = 0.35
+# A pinned leg straightens no farther than this share of its length (or than the decoded leg
+# already is), approached softly over the last FOOT_SOFTNESS of it (:func:`soft_reach`): a pin the
+# body has left behind used to pull the leg straight, and where the contact ended the knee snapped
+# back to its bend in one frame (the knees' pops of generated walks, up to 100 m/s^2).
+FOOT_STRETCH = 0.99
+FOOT_SOFTNESS = 0.02
+
+
+def release_fade(since: np.ndarray) -> np.ndarray:
+    """Share of a released foot's correction kept `since` frames after its contact ended (1 on
+    the first free frame): a smoothstep from 1 down to 0 over FOOT_BLEND frames, so the foot
+    changes its speed gradually where the correction starts and stops fading (a linear fade
+    changed it at once by the whole correction / FOOT_BLEND per frame)."""
+    s = np.clip(np.asarray(since, dtype=np.float64) / (FOOT_BLEND + 1), 0.0, 1.0)
+    return 1.0 - s * s * (3.0 - 2.0 * s)
+
+
+def soft_reach(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, goal: np.ndarray) -> np.ndarray:
+    """Ankle goals brought within the soft reach of their legs: (N, 3) hip, knee, ankle (the
+    decoded leg) and goal -> (N, 3) goal.
+
+    A leg reaches FOOT_STRETCH of its length, or FOOT_SOFTNESS of it farther than the decoded
+    ankle is, at most its whole length. A goal farther than that less FOOT_SOFTNESS is pulled
+    towards the hip on an exponential that meets the reach only at infinity ("soft IK"): the knee
+    never locks straight, so it bends again smoothly where the goal comes back within reach. A
+    goal within reach, and the decoded ankle itself, stay where they are.
+    """
+    length = np.linalg.norm(knee - hip, axis=-1) + np.linalg.norm(ankle - knee, axis=-1)
+    band = FOOT_SOFTNESS * length
+    reach = np.minimum(np.maximum(FOOT_STRETCH * length, np.linalg.norm(ankle - hip, axis=-1) + band), length)
+    start = reach - band
+    v = goal - hip
+    d = np.linalg.norm(v, axis=-1)
+    soft = np.where(d > start, start + band * (1.0 - np.exp(-(d - start) / np.maximum(band, 1e-9))), d)
+    return hip + v * (soft / np.maximum(d, 1e-9))[:, None]
 
 
 def two_bone_ik(
@@ -25,13 +72,15 @@ def two_bone_ik(
     ankle: np.ndarray,
     target: np.ndarray,
     bend_hint: np.ndarray | None = None,
+    hint_weight: float = 0.05,
 ) -> tuple:
     """Analytic two-bone IK per frame: hip fixed, bone lengths kept, the ankle moved to the target.
 
     The knee keeps the side it bent to, measured against the leg's *original* hip-ankle axis:
     measured against the new axis, a nearly straight leg's bend direction is noise, and the knee
     can flip backwards or sideways (hip twists of 90 degrees on runs). An optional `bend_hint`
-    (e.g. the direction the toes point) adds a 5 cm bias, so a straight leg bends that way.
+    (e.g. the direction the toes point) adds a bias of `hint_weight` m (5 cm), so a straight leg
+    bends that way.
 
     All (N, 3); returns (new knee, new ankle).
     """
@@ -46,7 +95,7 @@ def two_bone_ik(
     bend = (knee - hip) - ((knee - hip) * axis0).sum(-1, keepdims=True) * axis0
     if bend_hint is not None:
         hint_n = np.linalg.norm(bend_hint, axis=-1, keepdims=True)
-        bend = bend + 0.05 * bend_hint / np.maximum(hint_n, 1e-9)
+        bend = bend + hint_weight * bend_hint / np.maximum(hint_n, 1e-9)
     pole = bend - (bend * u).sum(-1, keepdims=True) * u
     pole_n = np.linalg.norm(pole, axis=-1, keepdims=True)
     # A straight leg with no hint has no bend plane: bend the knee along the original shin.
@@ -65,10 +114,11 @@ class FootPinner:
 
     A foot flagged in contact by the decoder is pinned where it is shown when the contact starts
     (its ankle, or its toe while only the toe touches, as the heel lifts) and the leg is re-solved
-    with :func:`two_bone_ik`. The pin follows the foot when the body drags
-    it more than FOOT_MAX_OFFSET away, and after the contact the correction fades out over
-    FOOT_BLEND frames. It never needs future frames, and it keeps every joint within
-    FOOT_MAX_OFFSET of the decoded pose: pins the leg cannot reach make no pops.
+    with :func:`two_bone_ik`, within the leg's soft reach (:func:`soft_reach`). The pin follows
+    the foot when the body drags it more than FOOT_MAX_OFFSET away, and after the contact the
+    correction fades out over FOOT_BLEND frames (:func:`release_fade`). It never needs future
+    frames, and it keeps every joint within FOOT_MAX_OFFSET of the decoded pose: pins the leg
+    cannot reach make no pops.
 
     Args:
         batch: B characters; the state of each carries over from one :meth:`apply` to the next.
@@ -111,7 +161,7 @@ class FootPinner:
                 pins[kind != 1, 1] = np.nan
                 free = kind < 0
                 since = self.since[rows, leg] + free
-                fade = np.maximum(0.0, 1.0 - since / (FOOT_BLEND + 1))[:, None]
+                fade = release_fade(since)[:, None]
                 offset = self.released[rows, leg] * fade
                 held = np.nonzero(~free)[0]
                 if len(held):
@@ -138,6 +188,7 @@ class FootPinner:
             goal = out[moved][:, ankle].copy()
             goal[:, [0, 2]] += offsets[moved]
             frames = out[moved]
+            goal = soft_reach(frames[:, hip], frames[:, knee], frames[:, ankle], goal)
             toes = frames[:, toe] - frames[:, ankle]
             toes[:, 1] = 0.0  # a knee points the way the foot does
             new_knee, new_ankle = two_bone_ik(frames[:, hip], frames[:, knee], frames[:, ankle], goal, toes)

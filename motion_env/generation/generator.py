@@ -38,6 +38,7 @@ from motion_env.models.checkpoint import check_text_encoder, load_checkpoint, sa
 from motion_env.models.controller import ControllerConfig, PathController
 from motion_env.models.gpt import GPTConfig, TokenGPT
 from motion_env.models.normalizer import Normalizer
+from motion_env.models.pace import PACE_FILE, load_pace
 from motion_env.models.sampling import SamplingConfig
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
 from motion_env.motion.features import rest_pose_features
@@ -131,7 +132,8 @@ class MotionGenerator:
 
         Args:
             path: directory with ``vqvae.pt``, ``gpt.pt``, ``controller.pt`` (and optionally
-                ``sampling.json`` and caption adapters); None = the shipped default model
+                ``sampling.json``, caption adapters and ``pace.pt``, the pace regressor of
+                :mod:`motion_env.models.pace`); None = the shipped default model
                 (``motion_env/weights``); ``"random"`` = the untrained test model of
                 :meth:`random` (seed 0).
             device: "cpu", "cuda", ...
@@ -185,6 +187,9 @@ class MotionGenerator:
         if adapter_ckpt is not None:
             gen.training_info["caption_adapter"] = training_record(adapter_ckpt)
         gen.pipeline.vocabulary = load_vocabulary(folder)
+        gen.pipeline.pace, pace_ckpt = load_pace(folder, records[0], ctrl.config.text_dim, device)
+        if pace_ckpt is not None:  # optional: untimed routes at the caption's pace
+            gen.training_info["pace"] = training_record(pace_ckpt)
         return gen
 
     @classmethod
@@ -252,6 +257,14 @@ class MotionGenerator:
             )  # fmt: skip
         else:
             (folder / ADAPTER_FILE).unlink(missing_ok=True)  # a stale one would adapt these models
+        pace = self.pipeline.pace
+        if pace is not None:
+            save_checkpoint(
+                folder / PACE_FILE, kind="pace", config=pace.config, model=pace, text_encoder=record,
+                **self._training_extra("pace"),
+            )  # fmt: skip
+        else:
+            (folder / PACE_FILE).unlink(missing_ok=True)
         (folder / SAMPLING_FILE).write_text(json.dumps(asdict(self.sampling), indent=2) + "\n")
         if self.pipeline.vocabulary is not None:  # what the model knows travels with it
             self.pipeline.vocabulary.save(folder)

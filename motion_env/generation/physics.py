@@ -28,7 +28,6 @@ same filter given the whole clip at once.
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import lsq_linear
 
 from motion_env.generation.feet import LEGS
 from motion_env.generation.ground import (
@@ -43,6 +42,7 @@ from motion_env.generation.ground import (
     support_gap,
     swing_clearance,
 )
+from motion_env.generation.height_plan import GRAVITY, STANCE_ACCELERATION, plan_heights
 from motion_env.motion.skeleton import FOOT_JOINTS, FPS, NUM_JOINTS
 
 __all__ = [
@@ -53,11 +53,6 @@ __all__ = [
     "plan_heights",
 ]
 
-GRAVITY = 9.81  # m/s^2
-# Vertical acceleration (m/s^2) of the centre of mass while a foot is on the floor. The floor
-# only pushes, and friction needs some push to carry horizontal forces, so the body falls slower
-# than free fall; runners' legs push with up to about 2.5 body weights.
-STANCE_ACCELERATION = (-0.75 * GRAVITY, 2.5 * GRAVITY)
 # How fast the estimate of how far the body floats above its planted feet follows each frame's
 # (a share per frame: about half a second).
 FLOAT_RATE = 0.1
@@ -68,116 +63,8 @@ UNREACHABLE = 0.04
 # The longest flight (frames); a longer stretch without contacts is no jump (a decoder that marks
 # no contacts at all), and the body is not made to fall.
 MAX_FLIGHT_FRAMES = 16
-# Weights of the height plan's least squares: keep the wanted heights, their velocities and
-# (weakly) the changes of their accelerations.
-_WEIGHT_POSITION, _WEIGHT_VELOCITY, _WEIGHT_JERK = 1.0, 1.0, 0.5
 # Height plans per call at most: each finds landings and take-offs the flags missed.
 _REPLANS = 4
-
-
-def _height_basis(m: int) -> np.ndarray:
-    """(m, m) matrix B with heights = B @ x, x = (c_0, c_1, s_1 .. s_{m-2}): the first two heights
-    and the second differences at frames 1..m-2 (m >= 2)."""
-    k = np.arange(m)[:, None]
-    basis = np.zeros((m, m))
-    basis[:, 0] = 1.0 - k[:, 0]
-    basis[:, 1] = k[:, 0]
-    basis[:, 2:] = np.maximum(k - np.arange(1, m - 1)[None, :], 0)
-    return basis
-
-
-def plan_heights(
-    raw: np.ndarray,
-    flight: np.ndarray,
-    past: np.ndarray | None = None,
-    past_raw: np.ndarray | None = None,
-) -> np.ndarray:
-    """Heights of the centre of mass that obey gravity, as close to the wanted ones as they can.
-
-    Bounded least squares over the second differences: in the air the centre of mass falls
-    freely (acceleration -GRAVITY: a parabola through the take-off and the landing), with a foot
-    on the floor its acceleration stays within :data:`STANCE_ACCELERATION`; the heights, their
-    velocities and (weakly) the changes of their accelerations follow `raw`, so heights that obey
-    both already stay as they are.
-
-    Args:
-        raw: (n,) wanted heights of the frames to plan.
-        flight: (h + n,) bool, frames in the air (:func:`flight_frames`), the past frames' first.
-        past: (h,) heights of the h (0 to 3) frames before, which stay as they are (the stream's
-            emitted frames); None: none.
-        past_raw: (h,) their wanted heights.
-
-    Returns:
-        (n,) planned heights.
-    """
-    raw = np.asarray(raw, dtype=np.float64)
-    past = np.zeros(0) if past is None else np.asarray(past, dtype=np.float64)
-    past_raw = np.zeros(0) if past_raw is None else np.asarray(past_raw, dtype=np.float64)
-    h, n = len(past), len(raw)
-    m = h + n
-    if m < 3:  # no frame with a neighbour on each side: no acceleration to plan
-        return raw.copy()
-    dt2 = 1.0 / FPS**2
-    basis = _height_basis(m)
-    fixed = np.full(m, np.nan)  # x = (c_0, c_1, s_1 .. s_{m-2}); NaN: free
-    fixed[: min(h, 2)] = past[:2]
-    for i in range(1, h - 1):  # accelerations the emitted frames already show
-        fixed[i + 1] = past[i + 1] - 2 * past[i] + past[i - 1]
-    air = np.asarray(flight, dtype=bool)[1 : m - 1] & np.isnan(fixed[2:])
-    fixed[2:][air] = -GRAVITY * dt2
-    free = np.isnan(fixed)
-    first = max(h, 1)
-    wanted = np.concatenate([past_raw, raw])
-    jerk = np.zeros((m - 3, m))
-    jerk[np.arange(m - 3), np.arange(3, m)] = 1.0
-    jerk[np.arange(m - 3), np.arange(2, m - 1)] = -1.0
-    a = np.concatenate(
-        [
-            _WEIGHT_POSITION * basis[h:],
-            _WEIGHT_VELOCITY * (basis[first:] - basis[first - 1 : -1]),
-            _WEIGHT_JERK * jerk,
-        ]
-    )
-    b = np.concatenate(
-        [
-            _WEIGHT_POSITION * raw,
-            _WEIGHT_VELOCITY * np.diff(wanted)[first - 1 :],
-            _WEIGHT_JERK * np.diff(wanted, 3),
-        ]
-    )
-    x = fixed.copy()
-    if free.any():
-        lo, hi = np.full(m, -np.inf), np.full(m, np.inf)
-        lo[2:], hi[2:] = STANCE_ACCELERATION[0] * dt2, STANCE_ACCELERATION[1] * dt2
-        rhs = b - a[:, ~free] @ fixed[~free]
-        x[free] = _bounded_lstsq(a[:, free], rhs, lo[free], hi[free])
-    return (basis @ x)[h:]
-
-
-def _bounded_lstsq(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """argmin |a x - b| with lo <= x <= hi: (M, N), (M,), (N,), (N,) -> (N,).
-
-    An active set: bounds that the free solution crosses are held, and released again where the
-    gradient pulls inwards. The stream's problems are a few variables, for which this is many
-    times faster than scipy's general solver; that one finishes what does not settle here.
-    """
-    x = np.clip(np.zeros(a.shape[1]), lo, hi)
-    held = np.zeros(a.shape[1], dtype=bool)
-    for _ in range(2 * a.shape[1] + 4):
-        free = ~held
-        if free.any():
-            x[free] = np.linalg.lstsq(a[:, free], b - a[:, held] @ x[held], rcond=None)[0]
-        crossed = free & ((x < lo) | (x > hi))
-        if crossed.any():
-            x = np.clip(x, lo, hi)
-            held |= crossed
-            continue
-        pull = a.T @ (a @ x - b)  # the gradient: a held bound is released if it points inwards
-        inwards = held & (((x <= lo) & (pull < 0)) | ((x >= hi) & (pull > 0)))
-        if not inwards.any():
-            return x
-        held[np.argmax(np.abs(np.where(inwards, pull, 0.0)))] = False
-    return lsq_linear(a, b, bounds=(lo, hi), method="bvls").x
 
 
 def _cap_flights(flight: np.ndarray, airborne: int) -> tuple[np.ndarray, int]:

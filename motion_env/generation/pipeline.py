@@ -10,7 +10,8 @@ stage methods causally, one token at a time, in the same order):
    adapter (:mod:`motion_env.models.caption_adapter`) moves a wording the models never saw to
    where they answer with the action and style it names;
 2. **path** (:meth:`Pipeline.plan_paths`): the route is planned
-   (:mod:`motion_env.generation.route_planning`), the path controller
+   (:mod:`motion_env.generation.route_planning`; untimed waypoints are timed at the caption's
+   pace, :mod:`motion_env.models.pace`, for the controller only), the path controller
    (:mod:`motion_env.models.controller`) rolls out x, z, heading frame by frame, closed loop, from
    the caption and the waypoints (towards the joint targets when there is no route), and the path
    is bent exactly through the waypoints (:mod:`motion_env.generation.recompose`);
@@ -21,7 +22,8 @@ stage methods causally, one token at a time, in the same order):
    decodes tokens to features (its :class:`~motion_env.models.normalizer.Normalizer` undoes the
    normalisation);
 5. **compose** (:meth:`Pipeline.compose`): the decoded body, relative to its root, is placed on
-   the root path and rebuilt on the skeleton's bone lengths (decoded legs come out up to 9 cm short);
+   the root path and rebuilt on the skeleton's bone lengths (decoded legs come out up to 9 cm
+   short), its wrists where the decoder put them (:func:`~motion_env.generation.recompose.on_bone_lengths`);
 6. **feet and physics** (:class:`~motion_env.generation.feet.FootPinner`,
    :mod:`motion_env.generation.physics`): feet the decoder marks as planted are pinned; then, with
    ``Pipeline.physics`` (on by default), the body's height is planned so that its centre of mass
@@ -44,27 +46,28 @@ from typing import Any
 import numpy as np
 import torch
 
-from motion_env.generation.closed_form import implied_route
 from motion_env.generation.feet import FootPinner
 from motion_env.generation.physics import apply_physics
 from motion_env.generation.recompose import (
     align_heading_to_travel,
     local_pose_from_features,
+    on_bone_lengths,
     recompose,
     smooth_path,
     snap_route,
 )
 from motion_env.generation.refine import RefineConfig, Refined, refine_clip
 from motion_env.generation.request import BatchRequest
-from motion_env.generation.route_planning import plan_route
+from motion_env.generation.root_bending import implied_route
+from motion_env.generation.route_planning import needs_pace, pace_route, plan_route
 from motion_env.models.caption_adapter import CaptionAdapter
 from motion_env.models.controller import ControllerState, PathController
 from motion_env.models.gpt import TokenGPT
 from motion_env.models.normalizer import Normalizer
+from motion_env.models.pace import PaceRegressor
 from motion_env.models.path_features import LOOKAHEAD_FRAMES, token_path_features
 from motion_env.models.sampling import SamplingConfig
 from motion_env.models.vqvae import VQVAE, DecoderStream
-from motion_env.motion.kinematics import with_bone_lengths
 from motion_env.motion.skeleton import FOOT_CONTACT
 from motion_env.text.vocabulary import Vocabulary, caption_warning, reading_text
 
@@ -122,6 +125,9 @@ class Pipeline:
             is then the one loaded.
 
     Attributes:
+        pace: the pace regressor (:class:`~motion_env.models.pace.PaceRegressor`, ``pace.pt``)
+            that times untimed routes at the caption's pace for the controller, or None (the
+            controller's own pace; assignable).
         vocabulary: what the models know about captions (the weights folder's
             :class:`~motion_env.text.vocabulary.Vocabulary`), or None: then captions are only
             checked for language and length, not for their distance to known wordings.
@@ -166,6 +172,9 @@ class Pipeline:
         # models decode, for comparisons or learners that want every frame they can get).
         self.physics = True
         self._caption_warnings: dict[str, str] = {}  # caption -> its warning ('' none), made once
+        # Stage 2's pace regressor (models.pace): untimed routes are followed at the caption's pace
+        # (generation.route_planning.pace_route); None: at the controller's own.
+        self.pace: PaceRegressor | None = None
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -302,8 +311,16 @@ class Pipeline:
         routes: list[np.ndarray | None],
         starts: np.ndarray,
         gens: list[torch.Generator],
+        paced: bool = True,
     ) -> ControllerState:
-        """Controller state at frame 0; the initial GRU state is drawn per character from its generator."""
+        """Controller state at frame 0; the initial GRU state is drawn per character from its generator.
+        With `paced`, the planned `routes` are timed at each caption's pace first (:meth:`paced_routes`):
+        whole clips only. A timed waypoint is passed when its frame comes, reached or not; a whole
+        clip's path is then bent through every waypoint, but the stream's causal bend only snaps
+        the waypoints its path comes near, so the stream follows untimed routes at the
+        controller's own pace (paced, a late character cut a corner and never reached it)."""
+        if paced:
+            routes = self.paced_routes(text_emb, routes, starts)
         state = self.controller.init_state(text_emb, routes, torch.from_numpy(starts))
         noise_std = self.controller.config.h0_noise
         if noise_std > 0:
@@ -311,6 +328,30 @@ class Pipeline:
             noise = torch.stack([torch.randn(hidden, generator=g) for g in gens]).to(self.device)
             state = replace(state, hidden=state.hidden + noise_std * noise)
         return state
+
+    def route_paces(self, text_emb: torch.Tensor) -> np.ndarray:
+        """(B,) the pace (m/s) the captions ask for on an untimed route (:attr:`pace`); NaN each
+        without a pace regressor."""
+        if self.pace is None:
+            return np.full(len(text_emb), np.nan)
+        return self.pace.pace(text_emb)
+
+    def paced_routes(
+        self,
+        text_emb: torch.Tensor,
+        routes: Sequence[np.ndarray | None],
+        starts: np.ndarray,
+        first_frame: int = 0,
+    ) -> list[np.ndarray | None]:
+        """Planned routes with their untimed waypoints timed at each caption's pace
+        (:func:`~motion_env.generation.route_planning.pace_route`): what the controller follows."""
+        if self.pace is None or not any(needs_pace(r) for r in routes):
+            return list(routes)
+        paces = self.route_paces(text_emb)
+        return [
+            pace_route(r, s[:2], first_frame, float(p))
+            for r, s, p in zip(routes, np.asarray(starts), paces, strict=True)
+        ]
 
     def rollout(self, text_emb: torch.Tensor, req: BatchRequest, num_frames: int) -> np.ndarray:
         """The controller's closed-loop root paths: (B, num_frames, 3) float32, frame 0 = start."""
@@ -337,15 +378,24 @@ class Pipeline:
         """The planned routes (B entries, None or (K, 3)) and the root paths (B, n_path, 3) of whole
         clips, smoothed (PATH_SMOOTHING) and bent through the routes. Without a route, a character
         with joint targets is steered to where they are
-        (:func:`~motion_env.generation.closed_form.implied_route`); the path is bent through the
-        request's own route only, the targets bend it later (refine)."""
+        (:func:`~motion_env.generation.root_bending.implied_route`) unless the path it takes
+        without them already brings them within reach (then its motion is the one without targets,
+        refined); the path is bent through the request's own route only, the targets bend it
+        later (refine)."""
         steer = req.routes
-        if req.joint_targets is not None:
+        raw = None
+        if req.joint_targets is not None and any(
+            r is None and t is not None for r, t in zip(req.routes, req.joint_targets, strict=True)
+        ):
+            free = self.clip_paths(text_emb, req, snap=False)  # the paths without targets
             steer = [
-                implied_route(t.dense(req.num_frames)) if r is None and t is not None else r
-                for r, t in zip(req.routes, req.joint_targets, strict=True)
+                implied_route(t.dense(req.num_frames), path=p) if r is None and t is not None else r
+                for r, t, p in zip(req.routes, req.joint_targets, free, strict=True)
             ]
-        raw = self.clip_paths(text_emb, replace(req, routes=steer), snap=False)
+            if all(s is r for s, r in zip(steer, req.routes, strict=True)):
+                raw = free
+        if raw is None:
+            raw = self.clip_paths(text_emb, replace(req, routes=steer), snap=False)
         # Only a path that passes waypoints stutters; without one the clip's path stays the
         # controller's own, as the stream's is.
         raw = [p if r is None else smooth_path(p, PATH_SMOOTHING) for p, r in zip(raw, steer, strict=True)]
@@ -398,7 +448,7 @@ class Pipeline:
         if m > n:
             local = np.concatenate([local, np.repeat(local[..., -1:, :, :], m - n, axis=-3)], axis=-3)
         path = align_heading_to_travel(root_path)
-        joints = with_bone_lengths(recompose(local, path, face_travel=False)[..., :num_frames, :, :])
+        joints = on_bone_lengths(recompose(local, path, face_travel=False)[..., :num_frames, :, :])
         return joints, path[..., :num_frames, :]
 
     # ------------------------------------------------------------------ 6. feet and physics

@@ -6,7 +6,8 @@
   token keeps a constant correction per frame).
 - :func:`recompose` places a *local pose* (the body relative to its root, in its own heading
   frame: what the body GPT decodes) on a root path, so the pelvis lies exactly on the path and
-  the body faces its direction of travel.
+  the body faces its direction of travel; :func:`on_bone_lengths` then rebuilds it on the
+  skeleton's bone lengths, its hands where the decoder put them.
 
 All functions are deterministic numpy; root paths follow :mod:`motion_env.motion.trajectory`.
 The feet are cleaned afterwards by :mod:`motion_env.generation.feet`.
@@ -18,8 +19,9 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 from scipy.ndimage import gaussian_filter1d
 
+from motion_env.generation.feet import two_bone_ik
 from motion_env.motion.features import features_to_joints
-from motion_env.motion.kinematics import rotate_y
+from motion_env.motion.kinematics import rotate_y, with_bone_lengths
 from motion_env.motion.skeleton import FPS
 from motion_env.motion.trajectory import (
     root_path_from_joints,
@@ -129,6 +131,56 @@ def recompose(local_pose: np.ndarray, root_path: np.ndarray, face_travel: bool =
     joints = rotate_y(local, path[..., None, 2].astype(np.float64))
     joints[..., [0, 2]] += path[..., None, :2].astype(np.float64)
     return joints.astype(np.float32)
+
+
+# The arms as (shoulder, elbow, wrist).
+ARMS: tuple[tuple[int, int, int], ...] = ((16, 18, 20), (17, 19, 21))
+# How much an arm's reach is scaled to the skeleton's arm at most (either way): the decoder's
+# arms are a few per cent short, but where a forearm collapses (decoded 8 cm long for 27 cm) the
+# ratio means nothing.
+ARM_SCALE = 1.05
+# The bias (m) towards bending back and out that an arm's elbow gets (see on_bone_lengths).
+ARM_BEND_HINT = 0.01
+
+
+def on_bone_lengths(joints: np.ndarray) -> np.ndarray:
+    """Decoded joints rebuilt on the skeleton's bone lengths, the wrists where the decoder put them.
+
+    :func:`~motion_env.motion.kinematics.with_bone_lengths` keeps every bone's direction; where the
+    decoder shrinks a forearm or upper arm to a third of its length for a few frames (as a hand is
+    raised fast), the direction of that short bone swings, and at full length it swung the wrist
+    through 10-20 cm in a frame: the wrists' pops of generated clips (100 m/s^2 where the decoded
+    wrist moves at 40). Here each arm is re-solved with :func:`~motion_env.generation.feet.two_bone_ik`
+    so that the wrist keeps its decoded place relative to the shoulder (the shoulder-wrist vector
+    scaled by the arm's length over the decoded one, within ARM_SCALE), the elbow bending in the
+    decoded elbow's plane. Per frame, so the stream does the same.
+
+    joints: (..., 22, 3) -> float32 of the same shape.
+    """
+    decoded = np.asarray(joints, dtype=np.float64)
+    out = with_bone_lengths(joints).astype(np.float64)
+    shape = out.shape
+    flat, dec = out.reshape(-1, shape[-2], 3), decoded.reshape(-1, shape[-2], 3)
+    for shoulder, elbow, wrist in ARMS:
+        length = np.linalg.norm(flat[:, elbow] - flat[:, shoulder], axis=-1) + np.linalg.norm(
+            flat[:, wrist] - flat[:, elbow], axis=-1
+        )
+        decoded_length = np.linalg.norm(dec[:, elbow] - dec[:, shoulder], axis=-1) + np.linalg.norm(
+            dec[:, wrist] - dec[:, elbow], axis=-1
+        )
+        scale = np.clip(length / np.maximum(decoded_length, 1e-9), 1.0 / ARM_SCALE, ARM_SCALE)
+        goal = flat[:, shoulder] + (dec[:, wrist] - dec[:, shoulder]) * scale[:, None]
+        # An arm the decoder holds straight but short has no bend of its own to keep: its elbow
+        # bends back and out (a 1 cm bias), rather than to whichever side noise puts it.
+        outward = flat[:, shoulder] - flat[:, ARMS[1 - ARMS.index((shoulder, elbow, wrist))][0]]
+        outward[:, 1] = 0.0
+        back = np.cross(outward, [0.0, 1.0, 0.0]) * (-1.0 if shoulder == ARMS[0][0] else 1.0)
+        hint = back / np.maximum(np.linalg.norm(back, axis=-1, keepdims=True), 1e-9)
+        hint += 0.5 * outward / np.maximum(np.linalg.norm(outward, axis=-1, keepdims=True), 1e-9)
+        flat[:, elbow], flat[:, wrist] = two_bone_ik(
+            flat[:, shoulder], flat[:, elbow], flat[:, wrist], goal, hint, hint_weight=ARM_BEND_HINT
+        )
+    return flat.reshape(shape).astype(np.float32)
 
 
 # ----------------------------------------------------------------------------------------------

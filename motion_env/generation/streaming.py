@@ -27,7 +27,6 @@ frames) at a time:
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import fields, replace
 from typing import Any
 
 import numpy as np
@@ -51,7 +50,7 @@ from motion_env.generation.request_controls import check_joint_targets, check_ob
 from motion_env.generation.route_planning import plan_route
 from motion_env.generation.stream_control import StreamControl
 from motion_env.joint_targets import JointTargets
-from motion_env.models.controller import ControllerState
+from motion_env.models.controller_state import StateRing
 from motion_env.models.path_features import D_PATH, token_path_features
 from motion_env.models.sampling import sample_tokens
 from motion_env.motion.skeleton import FEATURE_DIM, FOOT_CONTACT, NUM_JOINTS
@@ -61,36 +60,6 @@ __all__ = ["MotionStream"]
 
 # Frames of decoded body kept as left context of the recompose.
 STREAM_CONTEXT_FRAMES = 40
-
-
-# --------------------------------------------------------------------------------------------
-# Row-wise access to the controller's batched state
-# --------------------------------------------------------------------------------------------
-
-
-def _pad_waypoints(wp: torch.Tensor, k: int) -> torch.Tensor:
-    """(B, K, 3) -> (B, k, 3) by repeating the last slot (the controller's own padding)."""
-    if wp.shape[1] >= k:
-        return wp
-    return torch.cat([wp, wp[:, -1:].expand(-1, k - wp.shape[1], -1)], dim=1)
-
-
-def _take(state: ControllerState, rows: torch.Tensor) -> ControllerState:
-    return ControllerState(**{f.name: getattr(state, f.name)[rows] for f in fields(ControllerState)})
-
-
-def _put(state: ControllerState, rows: torch.Tensor, sub: ControllerState) -> ControllerState:
-    """A copy of `state` with `rows` replaced by the rows of `sub`."""
-    values = {}
-    for f in fields(ControllerState):
-        full, part = getattr(state, f.name), getattr(sub, f.name)
-        if f.name == "waypoints":
-            k = max(full.shape[1], part.shape[1])
-            full, part = _pad_waypoints(full, k), _pad_waypoints(part, k)
-        full = full.clone()
-        full[rows] = part.to(full.dtype)
-        values[f.name] = full
-    return ControllerState(**values)
 
 
 class MotionStream:
@@ -145,12 +114,7 @@ class MotionStream:
         r = self._ring = self._window + self._horizon + 2 * rate
         dev = g.device
         hid = g.controller.config.hidden
-        self._h_hidden = torch.zeros(b, r, hid, device=dev)
-        self._h_pos = torch.zeros(b, r, 2, device=dev)
-        self._h_theta = torch.zeros(b, r, device=dev)
-        self._h_vel = torch.zeros(b, r, 3, device=dev)
-        self._h_queue = torch.zeros(b, r, dtype=torch.long, device=dev)
-        self._raw = np.zeros((b, r, 3), np.float32)  # controller root per frame
+        self._states = StateRing(b, r, hid, dev)  # the controller's state and root per frame
         self._snapped = np.zeros((b, r, 3), np.float32)  # committed (snapped) root per frame
         self._features = np.zeros((b, r, FEATURE_DIM), np.float32)  # decoded features per frame
         self._feet = FootPinner(b)
@@ -169,9 +133,9 @@ class MotionStream:
 
         emb = g.encode_text(self._texts)
         self._cache = g.gpt.new_cache(emb, g.sampling.guidance)
-        self._front = g.init_controller(emb, self._routes, start_arr, self._ctrl_gens)
+        self._front = g.init_controller(emb, self._routes, start_arr, self._ctrl_gens, paced=False)
         rows = torch.arange(b, device=dev)
-        self._record(rows, self._front)
+        self._states.record(rows, self._front)
         self._snapped[:, 0] = start_arr
 
     # ------------------------------------------------------------------ public state
@@ -310,10 +274,10 @@ class MotionStream:
         )
         g = self._pipe
         emb = g.encode_text([text])
-        sub = g.init_controller(emb, [route], start_arr[None], [self._ctrl_gens[i]])
+        sub = g.init_controller(emb, [route], start_arr[None], [self._ctrl_gens[i]], paced=False)
         rows = torch.tensor([i], device=g.device)
-        self._front = _put(self._front, rows, sub)
-        self._record(rows, sub)
+        self._front = self._front.put(rows, sub)
+        self._states.record(rows, sub)
         g.gpt.reset_cache_rows(self._cache, [int(i)], emb)
         self._texts[i], self._routes[i] = text, route
         self._snapped[i, 0] = start_arr
@@ -355,39 +319,19 @@ class MotionStream:
         return out
 
     # ------------------------------------------------------------------ internals
-    def _record(self, rows: torch.Tensor, state: ControllerState) -> None:
-        """Store the controller state of `rows` at their current frame in the ring."""
-        slot = (state.frame % self._ring).to(rows.device)
-        self._h_hidden[rows, slot] = state.hidden
-        self._h_pos[rows, slot] = state.pos
-        self._h_theta[rows, slot] = state.theta
-        self._h_vel[rows, slot] = state.vel
-        self._h_queue[rows, slot] = state.queue
-        r = rows.cpu().numpy()
-        self._raw[r, (state.frame % self._ring).cpu().numpy()] = state.root.cpu().numpy()
-
     def _restore(self, rows: np.ndarray) -> None:
         """Roll the controller of `rows` back to their last decoded frame (after a caption/route change)."""
         g = self._pipe
         anchors = np.maximum(self._decoded[rows] - 1, 0)
         slots = torch.as_tensor(anchors % self._ring, device=g.device)
         rows_t = torch.as_tensor(rows, device=g.device)
-        sub = replace(
-            _take(self._front, rows_t),
-            pos=self._h_pos[rows_t, slots].clone(),
-            theta=self._h_theta[rows_t, slots].clone(),
-            vel=self._h_vel[rows_t, slots].clone(),
-            hidden=self._h_hidden[rows_t, slots].clone(),
-            frame=torch.as_tensor(anchors, device=g.device),
-            queue=self._h_queue[rows_t, slots].clone(),
-        )
-        self._front = _put(self._front, rows_t, sub)
+        self._front = self._states.restore(self._front, rows_t, torch.as_tensor(anchors, device=g.device))
         changed = self._route_changed[rows]
         if changed.any():
             moved = rows[changed]
             self._front = g.controller.set_routes(self._front, moved, [self._routes[i] for i in moved])
             moved_t = torch.as_tensor(moved, device=g.device)
-            self._h_queue[moved_t, slots[torch.as_tensor(changed)]] = self._front.queue[moved_t]
+            self._states.queue[moved_t, slots[torch.as_tensor(changed)]] = self._front.queue[moved_t]
         self._dirty[rows] = self._route_changed[rows] = False
 
     def _advance(self, rows: np.ndarray, targets: np.ndarray) -> None:
@@ -396,12 +340,14 @@ class MotionStream:
         frames = self._front.frame.cpu().numpy()[rows]
         need = targets - frames
         for n in np.unique(need[need > 0]):
-            group = torch.as_tensor(rows[need == n], device=g.device)
-            sub = _take(self._front, group)
-            for _ in range(int(n)):
-                sub = g.controller.step(sub)
-                self._record(group, sub)
-            self._front = _put(self._front, group, sub)
+            members = rows[need == n]
+            group = torch.as_tensor(members, device=g.device)
+            whole = len(members) == self.batch_size  # every row, in order (rows are sorted)
+            sub = self._front if whole else self._front.take(group)
+            first = sub.frame
+            sub, trace = g.controller.run(sub, int(n), trace=True)
+            self._states.record_trace(group, first, trace)
+            self._front = sub if whole else self._front.put(group, sub)
 
     def _snap_ahead(self, i: int, anchor: int, last: int) -> np.ndarray:
         """Character i's root path over frames anchor..last, continuing its committed path.
@@ -412,14 +358,14 @@ class MotionStream:
         path passes within SNAP_RADIUS (:func:`~motion_env.generation.recompose.route_anchors`).
         """
         frames = np.arange(anchor, last + 1)
-        raw = self._raw[i, frames % self._ring].astype(np.float64)
+        raw = self._states.roots[i, frames % self._ring].astype(np.float64)
         path = raw.copy()
         path[:, :2] += self._snapped[i, anchor % self._ring, :2] - raw[0, :2]
         route = self._routes[i]
         pelvis = self._control.pelvis_anchors(i, anchor, last) if self._control.active(i) else None
         if route is None and pelvis is None:
             return path.astype(np.float32)
-        queue = int(self._h_queue[i, anchor % self._ring])
+        queue = int(self._states.queue[i, anchor % self._ring])
         anchors = np.zeros((0, 3), np.float32)
         if route is not None:
             anchors = route_anchors(path, route[queue:], first=anchor, open_end=True)

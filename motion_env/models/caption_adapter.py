@@ -31,11 +31,12 @@ model and its file; the reader is the adapter plus its encoder.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Annotated
 
 import torch
 from torch import nn
 
-from motion_env.motion.validation import check_above, check_at_least
+from motion_env.motion.validation import CheckedConfig, PositiveFloat, PositiveInt
 
 __all__ = ["UNLABELLED", "CaptionAdapter", "CaptionAdapterConfig"]
 
@@ -43,7 +44,7 @@ UNLABELLED = "(unlabelled)"  # the action class of captions without labels (the 
 
 
 @dataclass
-class CaptionAdapterConfig:
+class CaptionAdapterConfig(CheckedConfig):
     """Shape of a :class:`CaptionAdapter`.
 
     Attributes:
@@ -59,22 +60,19 @@ class CaptionAdapterConfig:
         encoder: name of the text encoder the adapter reads ("minilm+sides", ...).
     """
 
-    in_dim: int = 768
-    out_dim: int = 768
-    hidden: int = 512
-    layers: int = 2
-    dropout: float = 0.1
+    in_dim: PositiveInt = 768
+    out_dim: PositiveInt = 768
+    hidden: PositiveInt = 512
+    layers: PositiveInt = 2
+    dropout: Annotated[float, "[0, 1)"] = 0.1
     actions: tuple[str, ...] = ()
     styles: tuple[str, ...] = ()
     pairs: tuple[str, ...] = ()
-    temperature: float = 1.0
+    temperature: PositiveFloat = 1.0
     encoder: str = "minilm+sides"
 
     def __post_init__(self) -> None:
-        check_at_least(self, 1, "in_dim", "out_dim", "hidden", "layers")
-        check_above(self, 0, "temperature")
-        if not 0.0 <= self.dropout < 1.0:
-            raise ValueError(f"dropout must be in [0, 1), got {self.dropout}")
+        super().__post_init__()
         self.actions, self.styles, self.pairs = tuple(self.actions), tuple(self.styles), tuple(self.pairs)
         for pair in self.pairs:
             action, _, style = pair.partition("|")

@@ -25,7 +25,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 import torch
@@ -35,6 +35,7 @@ from torch.nn import functional as F
 from motion_env.models.checkpoint import load_checkpoint, save_checkpoint
 from motion_env.motion.kinematics import floor_height, heading_from_joints, rotate_y, to_heading_frame
 from motion_env.motion.skeleton import FPS, NUM_JOINTS
+from motion_env.motion.validation import CheckedConfig, PositiveInt
 
 __all__ = [
     "CHECKPOINT_KIND",
@@ -55,7 +56,7 @@ FEATURE_DIM = NUM_JOINTS * 3 + 3  # local joints + (lateral, forward) pelvis vel
 
 
 @dataclass
-class ClassifierConfig:
+class ClassifierConfig(CheckedConfig):
     """The classifier's architecture and the labels it knows.
 
     Attributes:
@@ -70,25 +71,20 @@ class ClassifierConfig:
 
     actions: tuple[str, ...] = ()
     styles: tuple[str, ...] = ()
-    window: int = 80
-    width: int = 96
-    layers: int = 3
-    kernel: int = 5
-    dropout: float = 0.1
+    window: PositiveInt = 80
+    width: PositiveInt = 96
+    layers: PositiveInt = 3
+    kernel: PositiveInt = 5
+    dropout: Annotated[float, "[0, 1)"] = 0.1
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         self.actions, self.styles = tuple(self.actions), tuple(self.styles)
-        if len(self.actions) < 2 or len(set(self.actions)) != len(self.actions):
-            raise ValueError(f"actions must be at least two distinct labels, got {self.actions}")
-        if len(self.styles) < 2 or len(set(self.styles)) != len(self.styles):
-            raise ValueError(f"styles must be at least two distinct labels, got {self.styles}")
-        for name in ("window", "width", "layers", "kernel"):
-            if int(getattr(self, name)) < 1:
-                raise ValueError(f"{name} must be a positive int, got {getattr(self, name)}")
+        for name, labels in (("actions", self.actions), ("styles", self.styles)):
+            if len(labels) < 2 or len(set(labels)) != len(labels):
+                raise ValueError(f"ClassifierConfig.{name} must be two or more distinct labels, got {labels}")
         if self.kernel % 2 == 0:
-            raise ValueError(f"kernel must be odd, got {self.kernel}")
-        if not 0.0 <= self.dropout < 1.0:
-            raise ValueError(f"dropout must be in [0, 1), got {self.dropout}")
+            raise ValueError(f"ClassifierConfig.kernel must be odd, got {self.kernel}")
 
 
 # --------------------------------------------------------------------------------------------

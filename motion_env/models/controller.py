@@ -23,21 +23,31 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from typing import Annotated
 
 import numpy as np
 import torch
+import torch.nn.functional as F
 from torch import nn
 
-from motion_env.motion.skeleton import FPS
+from motion_env.models.controller_state import ControllerState, Trace
+from motion_env.models.waypoint_features import (
+    WAYPOINT_FEATURES,
+    Constants,
+    RouteView,
+    constants,
+    from_heading_frame_torch,
+    next_queue,
+    pack_waypoints,
+    route_view,
+    slot_features,
+)
 from motion_env.motion.trajectory import validate_waypoints
-from motion_env.motion.validation import check_above, check_at_least, check_interval
-
-# Features per waypoint slot (see PathController.waypoint_features).
-WAYPOINT_FEATURES = 9
+from motion_env.motion.validation import CheckedConfig, NonNegativeFloat, PositiveFloat, PositiveInt
 
 
 @dataclass
-class ControllerConfig:
+class ControllerConfig(CheckedConfig):
     """Sizes and the closed-form constants of :class:`PathController`.
 
     Attributes:
@@ -56,101 +66,21 @@ class ControllerConfig:
             same way in training, so rollouts vary a little with the seed).
     """
 
-    text_dim: int = 384
-    text_proj: int = 64
-    num_slots: int = 4
-    hidden: int = 384
-    mlp: int = 256
-    arrive_radius: float = 0.3
-    seek_rate: float = 0.25
-    step_scale: float = 0.1
-    turn_scale: float = 0.1
-    max_time_to_go: float = 10.0
-    h0_noise: float = 0.3
-
-    def __post_init__(self) -> None:
-        check_at_least(self, 1, "text_dim", "text_proj", "num_slots", "hidden", "mlp")
-        check_above(self, 0, "arrive_radius", "step_scale", "turn_scale", "max_time_to_go")
-        check_interval(self, "(0, 1]", "seek_rate")
-        check_at_least(self, 0, "h0_noise")
+    text_dim: PositiveInt = 384
+    text_proj: PositiveInt = 64
+    num_slots: PositiveInt = 4
+    hidden: PositiveInt = 384
+    mlp: PositiveInt = 256
+    arrive_radius: PositiveFloat = 0.3
+    seek_rate: Annotated[float, "(0, 1]"] = 0.25
+    step_scale: PositiveFloat = 0.1
+    turn_scale: PositiveFloat = 0.1
+    max_time_to_go: PositiveFloat = 10.0
+    h0_noise: NonNegativeFloat = 0.3
 
     @property
     def input_dim(self) -> int:
         return self.text_proj + self.num_slots * WAYPOINT_FEATURES + 3
-
-
-def to_heading_frame_torch(vec: torch.Tensor, theta: torch.Tensor) -> torch.Tensor:
-    """Torch twin of :func:`motion_env.motion.to_heading_frame`: world (..., 2) -> (lateral, forward)."""
-    c, s = torch.cos(theta), torch.sin(theta)
-    return torch.stack([vec[..., 0] * c - vec[..., 1] * s, vec[..., 0] * s + vec[..., 1] * c], dim=-1)
-
-
-def from_heading_frame_torch(vec: torch.Tensor, theta: torch.Tensor) -> torch.Tensor:
-    """Torch twin of :func:`motion_env.motion.from_heading_frame`: (lateral, forward) -> world (..., 2)."""
-    c, s = torch.cos(theta), torch.sin(theta)
-    return torch.stack([vec[..., 0] * c + vec[..., 1] * s, -vec[..., 0] * s + vec[..., 1] * c], dim=-1)
-
-
-@dataclass
-class ControllerState:
-    """Everything a rollout carries from one frame to the next, batched over B characters.
-
-    Attributes:
-        pos: (B, 2) world x, z of the current frame.
-        theta: (B,) heading of the current frame (unwrapped).
-        vel: (B, 3) the last step as (lateral m/s, forward m/s, turn rad/s) in the heading frame.
-        hidden: (B, hidden) GRU state.
-        frame: (B,) long, index of the current frame in each character's episode.
-        text: (B, text_dim) caption embeddings.
-        waypoints: (B, K, 3) x, z, frame index (NaN = untimed), padded past ``count``.
-        count: (B,) long, number of real waypoints (0 = no route: follow the caption).
-        queue: (B,) long, index of the current target waypoint.
-    """
-
-    pos: torch.Tensor
-    theta: torch.Tensor
-    vel: torch.Tensor
-    hidden: torch.Tensor
-    frame: torch.Tensor
-    text: torch.Tensor
-    waypoints: torch.Tensor
-    count: torch.Tensor
-    queue: torch.Tensor
-
-    @property
-    def root(self) -> torch.Tensor:
-        """(B, 3) x, z, heading of the current frame."""
-        return torch.cat([self.pos, self.theta[:, None]], dim=-1)
-
-
-def pack_waypoints(
-    waypoints: list[np.ndarray | list | None] | None, batch: int, device: torch.device | str = "cpu"
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """Validate per-character waypoints and pad them into one tensor.
-
-    Args:
-        waypoints: None (no route for anyone) or a list of B entries, each None or a (K, 2)/(K, 3)
-            array accepted by :func:`motion_env.motion.trajectory.validate_waypoints`.
-        batch: B.
-
-    Returns:
-        ((B, Kmax, 3) float32 padded by repeating the last row, (B,) long counts).
-    """
-    if waypoints is None:
-        waypoints = [None] * batch
-    if len(waypoints) != batch:
-        raise ValueError(f"got {len(waypoints)} waypoint lists for {batch} characters")
-    rows = [None if w is None else validate_waypoints(w) for w in waypoints]
-    kmax = max([1] + [len(r) for r in rows if r is not None])
-    out = np.zeros((batch, kmax, 3), np.float32)
-    counts = np.zeros(batch, np.int64)
-    for b, r in enumerate(rows):
-        if r is None:
-            continue
-        out[b, : len(r)] = r
-        out[b, len(r) :] = r[-1]
-        counts[b] = len(r)
-    return torch.from_numpy(out).to(device), torch.from_numpy(counts).to(device)
 
 
 class PathController(nn.Module):
@@ -303,19 +233,9 @@ class PathController(nn.Module):
 
     def _advance_queue(self, state: ControllerState) -> ControllerState:
         """Move each character's target past reached waypoints (timed: frame reached; untimed: near)."""
-        queue = state.queue.clone()
-        batch = torch.arange(queue.shape[0], device=queue.device)
-        pos = state.pos.detach()
-        frame = state.frame.to(torch.float32)
-        for _ in range(state.waypoints.shape[1]):
-            wp = state.waypoints[batch, queue]  # (B, 3)
-            timed = ~torch.isnan(wp[:, 2])
-            passed_time = timed & (wp[:, 2].nan_to_num(0.0) <= frame)
-            near = ~timed & ((wp[:, :2] - pos).norm(dim=-1) < self.config.arrive_radius)
-            move = (passed_time | near) & (queue < state.count - 1)
-            if not move.any():
-                break
-            queue = queue + move.long()
+        queue = next_queue(
+            state.waypoints, state.count, state.queue, state.pos, state.frame, self.config.arrive_radius
+        )
         return replace(state, queue=queue)
 
     # ------------------------------------------------------------------ the network
@@ -329,40 +249,14 @@ class PathController(nn.Module):
             offset in metres up close), log(1 + dist), timed flag, time to go (s), the speed a
             timed waypoint asks for (m/s), is-last flag, valid flag (any route at all), and
             log(1 + the distance from the previous slot) for the shape of the route ahead.
+            The route's part (:func:`route_view`) changes only with the queue; a rollout makes
+            it once per waypoint passed, :func:`slot_features` every frame.
         """
-        c = self.config
-        b = state.pos.shape[0]
-        batch = torch.arange(b, device=state.pos.device)
-        slots = state.queue[:, None] + torch.arange(c.num_slots, device=state.pos.device)[None]
-        slots = torch.minimum(slots, (state.count - 1).clamp(min=0)[:, None])  # (B, S)
-        wp = state.waypoints[batch[:, None], slots]  # (B, S, 3)
-        offset = to_heading_frame_torch(wp[..., :2] - state.pos[:, None], state.theta[:, None])  # (B, S, 2)
-        dist = offset.norm(dim=-1)  # (B, S)
-        timed = ~torch.isnan(wp[..., 2])
-        ttg = ((wp[..., 2].nan_to_num(0.0) - state.frame[:, None].float()) / FPS).clamp(0.0, c.max_time_to_go)
-        ttg = torch.where(timed, ttg, torch.zeros_like(ttg))
-        speed = torch.where(timed, dist / (ttg + 0.25), torch.zeros_like(dist)).clamp(max=10.0)
-        is_last = (slots == (state.count - 1)[:, None]).float()
-        valid = (state.count > 0)[:, None].expand(b, c.num_slots).float()
-        prev = torch.cat([state.pos[:, None], wp[:, :-1, :2]], dim=1)
-        seg = (wp[..., :2] - prev).norm(dim=-1)
-        feats = torch.stack(
-            [
-                offset[..., 0] / dist.clamp(min=1.0),
-                offset[..., 1] / dist.clamp(min=1.0),
-                torch.log1p(dist),
-                timed.float(),
-                ttg,
-                speed,
-                is_last,
-                valid,
-                torch.log1p(seg),
-            ],
-            dim=-1,
-        )  # (B, S, 9)
-        feats = feats * valid[..., None]
-        final = (state.count > 0) & (state.queue == state.count - 1)
-        return feats.reshape(b, -1), offset[:, 0], final
+        view = route_view(state.waypoints, state.count, state.queue, self.config.num_slots)
+        frame = state.frame.unsqueeze(1).float()
+        const = constants(self.config.step_scale, self.config.turn_scale, state.pos.dtype)
+        feats, target = slot_features(view, state.pos, state.theta, frame, self.config.max_time_to_go, const)
+        return feats, target, view.final
 
     def _text_features(self, text: torch.Tensor) -> torch.Tensor:
         """(B, text_proj) the captions' projection. A rollout keeps one caption tensor for many
@@ -376,28 +270,128 @@ class PathController(nn.Module):
             cache = self._text_cache = (text, version, self.text_proj(text))  # holding `text` keeps it alive
         return cache[2]
 
+    def _weights(self) -> tuple[torch.Tensor, ...]:
+        """The parameters of the input MLP, the GRU and the output MLP, in :meth:`_frame`'s order."""
+        return (
+            self.inp[0].weight, self.inp[0].bias, self.inp[2].weight, self.inp[2].bias,
+            self.gru.weight_ih, self.gru.weight_hh, self.gru.bias_ih, self.gru.bias_hh,
+            self.out[0].weight, self.out[0].bias, self.out[2].weight, self.out[2].bias,
+        )  # fmt: skip
+
+    def _frame(
+        self,
+        weights: tuple[torch.Tensor, ...],
+        const: Constants,
+        text: torch.Tensor,
+        view: RouteView,
+        pos: torch.Tensor,
+        theta: torch.Tensor,
+        vel: torch.Tensor,
+        hidden: torch.Tensor,
+        frame: torch.Tensor,
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """One frame of the network, the arrive gating and the integration: (pos, theta, vel, hidden)
+        of the next frame. `text` is the (B, text_dim) captions, `frame` (B, 1) float, `weights`
+        :meth:`_weights`: the modules' forward passes are called as functions (the same kernels,
+        without the modules' overhead)."""
+        c = self.config
+        w1, b1, w2, b2, w_ih, w_hh, b_ih, b_hh, w3, b3, w4, b4 = weights
+        wfeat, target = slot_features(view, pos, theta, frame, c.max_time_to_go, const)
+        # Velocities in m/s and rad/s are O(1) already; halve them to keep sprints in range.
+        x = torch.cat([self._text_features(text), wfeat, vel * const.half], dim=-1)
+        z = F.gelu(F.linear(F.gelu(F.linear(x, w1, b1)), w2, b2))  # self.inp: (B, mlp)
+        hidden = torch.gru_cell(z, hidden, w_ih, w_hh, b_ih, b_hh)  # self.gru: (B, hidden)
+        raw = F.linear(F.gelu(F.linear(torch.cat([hidden, z], dim=-1), w3, b3)), w4, b4)  # self.out: (B, 3)
+        step_xz = raw[:, :2] * const.step_scale  # (B, 2) metres per frame, heading frame
+        turn = raw[:, 2] * const.turn_scale  # (B,) radians per frame
+        if view.any_final:
+            # Arrive gating: near the last waypoint, blend into a direct approach with zero turn. The
+            # gate falls quadratically so the approach (linear in the distance) always wins up
+            # close. (Elsewhere the gate is 1: the step is the network's, computed as such.)
+            dist = target.norm(dim=-1)
+            gate = torch.where(
+                view.final, (dist / c.arrive_radius).clamp(max=1.0) ** 2, torch.ones_like(dist)
+            )
+            step_xz = gate[:, None] * step_xz + (1.0 - gate[:, None]) * c.seek_rate * target
+            turn = gate * turn
+        new_theta = theta + turn
+        pos = pos + from_heading_frame_torch(step_xz, theta + turn * const.half)
+        vel = torch.cat([step_xz, turn.unsqueeze(1)], dim=-1) * const.fps
+        return pos, new_theta, vel, hidden
+
+    def run(
+        self, state: ControllerState, num_steps: int, trace: bool = False
+    ) -> tuple[ControllerState, Trace]:
+        """Advance every character by `num_steps` frames: the closed loop of training and inference.
+
+        Differentiable when gradients are on. Per frame only the network and the features that
+        move with the character are computed; the route's part of the features (:func:`route_view`)
+        is made again only when a waypoint is passed (tested on each character's current target:
+        a timed one by its frame, without touching tensors, an untimed one by its distance).
+
+        Returns:
+            (the state after the last frame, the :class:`Trace` of frames 1..num_steps: roots
+            always, with `trace` also velocities, GRU states and queues).
+        """
+        c = self.config
+        num_steps = int(num_steps)
+        weights, const = self._weights(), constants(c.step_scale, c.turn_scale, state.pos.dtype)
+        pos, theta, vel, hidden, queue = state.pos, state.theta, state.vel, state.hidden, state.queue
+        frames = (state.frame.unsqueeze(1) + torch.arange(num_steps + 1, device=state.frame.device)).float()
+        roots, poss, thetas, vels, hiddens, queues = [], [], [], [], [], []
+        # With gradients each frame's root is made as the frame ends (the order in which the
+        # gradients are summed stays that of stepping frame by frame); without, all at the end.
+        grad = torch.is_grad_enabled()
+        view = due = None
+        for n in range(num_steps + 1):
+            if n:
+                moved = n >= due
+                if not moved and view.any_near:
+                    near = torch.linalg.vector_norm(view.xy[:, 0] - pos.detach(), dim=-1) < c.arrive_radius
+                    moved = bool((near & view.near).any())
+                if moved:
+                    frame = state.frame + n
+                    queue = next_queue(state.waypoints, state.count, queue, pos, frame, c.arrive_radius)
+                    view = None
+                if grad:
+                    roots.append(torch.cat([pos, theta.unsqueeze(1)], dim=-1))
+                else:
+                    poss.append(pos)
+                    thetas.append(theta)
+                if trace:
+                    vels.append(vel)
+                    hiddens.append(hidden)
+                    queues.append(queue)
+            if n == num_steps:
+                break
+            frame = frames.narrow(1, n, 1)  # (B, 1)
+            if view is None:
+                view = route_view(state.waypoints, state.count, queue, c.num_slots)
+                # The earliest step at which some character's timed target is due (frames are
+                # whole numbers, so the comparison is exact in float64).
+                due = n + (view.due.double() - (state.frame + n).double()).min().item()
+            pos, theta, vel, hidden = self._frame(
+                weights, const, state.text, view, pos, theta, vel, hidden, frame
+            )
+        frame = state.frame + num_steps
+        new = replace(state, pos=pos, theta=theta, vel=vel, hidden=hidden, frame=frame, queue=queue)
+        if not num_steps:
+            return new, Trace(roots=state.pos.new_zeros((state.pos.shape[0], 0, 3)))
+        if grad:
+            out = Trace(roots=torch.stack(roots, dim=1))
+        else:
+            out = Trace(
+                roots=torch.cat([torch.stack(poss, dim=1), torch.stack(thetas, dim=1)[..., None]], dim=-1)
+            )
+        if trace:
+            out = Trace(
+                out.roots, torch.stack(vels, dim=1), torch.stack(hiddens, dim=1), torch.stack(queues, dim=1)
+            )
+        return new, out
+
     def step(self, state: ControllerState) -> ControllerState:
         """Advance every character by one frame; returns the new state (its ``root`` is the new frame)."""
-        c = self.config
-        wfeat, target, final = self.waypoint_features(state)
-        # Velocities in m/s and rad/s are O(1) already; halve them to keep sprints in range.
-        x = torch.cat([self._text_features(state.text), wfeat, 0.5 * state.vel], dim=-1)
-        z = self.inp(x)  # (B, mlp)
-        hidden = self.gru(z, state.hidden)  # (B, hidden)
-        raw = self.out(torch.cat([hidden, z], dim=-1))  # (B, 3)
-        step_xz = raw[:, :2] * c.step_scale  # (B, 2) metres per frame, heading frame
-        turn = raw[:, 2] * c.turn_scale  # (B,) radians per frame
-        # Arrive gating: near the last waypoint, blend into a direct approach with zero turn. The
-        # gate falls quadratically so the approach (linear in the distance) always wins up close.
-        dist = target.norm(dim=-1)
-        gate = torch.where(final, (dist / c.arrive_radius).clamp(max=1.0) ** 2, torch.ones_like(dist))
-        step_xz = gate[:, None] * step_xz + (1.0 - gate[:, None]) * c.seek_rate * target
-        turn = gate * turn
-        theta = state.theta + turn
-        pos = state.pos + from_heading_frame_torch(step_xz, state.theta + 0.5 * turn)
-        vel = torch.cat([step_xz, turn[:, None]], dim=-1) * FPS
-        new = replace(state, pos=pos, theta=theta, vel=vel, hidden=hidden, frame=state.frame + 1)
-        return self._advance_queue(new)
+        return self.run(state, 1)[0]
 
     def forward(self, state: ControllerState, num_steps: int) -> tuple[torch.Tensor, ControllerState]:
         """Differentiable closed-loop rollout of `num_steps` frames after the state's frame.
@@ -405,11 +399,8 @@ class PathController(nn.Module):
         Returns:
             (roots (B, num_steps + 1, 3) including the starting frame, the final state).
         """
-        roots = [state.root]
-        for _ in range(num_steps):
-            state = self.step(state)
-            roots.append(state.root)
-        return torch.stack(roots, dim=1), state
+        new, trace = self.run(state, num_steps)
+        return torch.cat([state.root[:, None], trace.roots], dim=1), new
 
     # ------------------------------------------------------------------ inference API
     @torch.no_grad()

@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Annotated
 
 import numpy as np
 import torch
@@ -36,43 +37,37 @@ from torch import nn
 
 from motion_env.models.path_features import D_PATH
 from motion_env.models.sampling import SamplingConfig, sample_tokens
-from motion_env.motion.validation import check_interval, check_positive_ints
+from motion_env.motion.validation import CheckedConfig, PositiveInt
 
 
 @dataclass
-class GPTConfig:
+class GPTConfig(CheckedConfig):
     """Body GPT hyper-parameters.
 
     Attributes:
         vocab_size: number of motion tokens (the VQ-VAE codebook size).
         block_size: window length in tokens (positions); 32 tokens = 6.4 s at rate 4, longer
-            than most training clips (median 4 s), which keeps CPU training affordable.
+            than most training clips (median 4 s), which keeps CPU training affordable. At
+            least 2: the window slides by halves.
         n_layer, n_head, n_embd: transformer depth, heads and width.
         dropout: dropout in training.
         text_dim: width of the text embedding (384 for MiniLM).
         path_dim: width of the per-token path features (paths.D_PATH).
     """
 
-    vocab_size: int = 512
-    block_size: int = 32
-    n_layer: int = 4
-    n_head: int = 4
-    n_embd: int = 192
-    dropout: float = 0.1
-    text_dim: int = 384
-    path_dim: int = D_PATH
+    vocab_size: PositiveInt = 512
+    block_size: Annotated[int, ">= 2"] = 32
+    n_layer: PositiveInt = 4
+    n_head: PositiveInt = 4
+    n_embd: PositiveInt = 192
+    dropout: Annotated[float, "[0, 1)"] = 0.1
+    text_dim: PositiveInt = 384
+    path_dim: PositiveInt = D_PATH
 
     def __post_init__(self) -> None:
-        check_positive_ints(
-            self, "vocab_size", "block_size", "n_layer", "n_head", "n_embd", "text_dim", "path_dim"
-        )
-        if self.block_size < 2:
-            raise ValueError(
-                f"GPTConfig.block_size must be >= 2 (the window slides by halves), got {self.block_size}"
-            )
+        super().__post_init__()
         if self.n_embd % self.n_head:
             raise ValueError(f"GPTConfig.n_embd ({self.n_embd}) must be divisible by n_head ({self.n_head})")
-        check_interval(self, "[0, 1)", "dropout")
 
     @property
     def start_token(self) -> int:
@@ -114,6 +109,17 @@ class GPTCache:
         return rows // 2 if self.guidance != 1.0 else rows
 
 
+def _linear(layer: nn.Linear, x: torch.Tensor) -> torch.Tensor:
+    """``layer(x)`` as a function call: the module's own kernel, without the cost of calling a
+    module (which adds up at one token per step)."""
+    return F.linear(x, layer.weight, layer.bias)
+
+
+def _layer_norm(layer: nn.LayerNorm, x: torch.Tensor) -> torch.Tensor:
+    """``layer(x)`` as a function call (see :func:`_linear`)."""
+    return F.layer_norm(x, layer.normalized_shape, layer.weight, layer.bias, layer.eps)
+
+
 class CausalSelfAttention(nn.Module):
     def __init__(self, config: GPTConfig) -> None:
         super().__init__()
@@ -126,16 +132,14 @@ class CausalSelfAttention(nn.Module):
         self, x: torch.Tensor, mask: torch.Tensor, past: tuple[torch.Tensor, torch.Tensor] | None
     ) -> tuple[torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
         B, T, C = x.shape
-        q, k, v = self.qkv(x).split(C, dim=2)
-        q, k, v = (
-            t.view(B, T, self.n_head, C // self.n_head).transpose(1, 2) for t in (q, k, v)
-        )  # (B, H, T, hd)
+        # (B, T, 3C) -> q, k, v, each (B, H, T, hd): views of the projection, as split + transpose give
+        q, k, v = _linear(self.qkv, x).view(B, T, 3, self.n_head, C // self.n_head).permute(2, 0, 3, 1, 4)
         if past is not None:
             k, v = torch.cat([past[0], k], dim=2), torch.cat([past[1], v], dim=2)  # (B, H, L+T, hd)
         y = F.scaled_dot_product_attention(
             q, k, v, attn_mask=mask, dropout_p=self.dropout if self.training else 0.0
         )  # (B, H, T, hd)
-        return self.proj(y.transpose(1, 2).reshape(B, T, C)), (k, v)
+        return _linear(self.proj, y.transpose(1, 2).reshape(B, T, C)), (k, v)
 
 
 class Block(nn.Module):
@@ -154,9 +158,11 @@ class Block(nn.Module):
     def forward(
         self, x: torch.Tensor, mask: torch.Tensor, past: tuple[torch.Tensor, torch.Tensor] | None
     ) -> tuple[torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
-        a, kv = self.attn(self.ln_1(x), mask, past)
+        a, kv = self.attn(_layer_norm(self.ln_1, x), mask, past)
         x = x + a
-        return x + self.mlp(self.ln_2(x)), kv
+        fc, _, out, drop = self.mlp  # self.mlp(...), layer by layer (see _linear)
+        h = _linear(out, F.gelu(_linear(fc, _layer_norm(self.ln_2, x))))
+        return x + (drop(h) if self.training else h), kv
 
 
 class TokenGPT(nn.Module):
@@ -214,8 +220,15 @@ class TokenGPT(nn.Module):
                 f"path features must be (B, N, {self.config.path_dim}) like tokens {tuple(tokens.shape)}, "
                 f"got {tuple(path.shape)}"
             )
-        x = self.tok_emb(tokens) + self.path_mlp(path) + text[:, None] + self.pos_emb(pos)  # (B, N, C)
-        return self.drop(x)
+        fc, _, out = self.path_mlp  # self.path_mlp(path), layer by layer (see _linear)
+        path_x = _linear(out, F.gelu(_linear(fc, path)))
+        x = (
+            F.embedding(tokens, self.tok_emb.weight)
+            + path_x
+            + text[:, None]
+            + F.embedding(pos, self.pos_emb.weight)
+        )
+        return self.drop(x) if self.training else x  # (B, N, C)
 
     def _run(
         self,
@@ -226,19 +239,27 @@ class TokenGPT(nn.Module):
     ) -> tuple[torch.Tensor, list[tuple[torch.Tensor, torch.Tensor]]]:
         """Transformer over new inputs x (B, N, C) after an optional cached past; -> logits (B, N, V)."""
         B, N, _ = x.shape
-        causal = torch.ones(N, N, dtype=torch.bool, device=x.device).tril()
-        mask = causal[None] & new_valid[:, None, :]  # (B, N, N)
-        if past:
-            mask = torch.cat([past_valid[:, None, :].expand(B, N, -1), mask], dim=2)  # (B, N, L+N)
-        # Every query sees at least itself, so padded queries never produce NaN.
-        eye = torch.zeros_like(mask)
-        eye[:, :, -N:] = torch.eye(N, dtype=torch.bool, device=x.device)
-        mask = (mask | eye)[:, None]  # (B, 1, N, L+N)
+        if past and N == 1:
+            # One new input (a decoding step): it sees the valid cached positions and itself.
+            itself = torch.ones(B, 1, dtype=torch.bool, device=x.device)
+            mask = torch.cat([past_valid, itself], dim=1)[:, None, None]  # (B, 1, 1, L+1)
+        else:
+            causal = torch.ones(N, N, dtype=torch.bool, device=x.device).tril()
+            mask = causal[None] & new_valid[:, None, :]  # (B, N, N)
+            if past:
+                mask = torch.cat([past_valid[:, None, :].expand(B, N, -1), mask], dim=2)  # (B, N, L+N)
+            # Every query sees at least itself, so padded queries never produce NaN.
+            eye = torch.zeros_like(mask)
+            eye[:, :, -N:] = torch.eye(N, dtype=torch.bool, device=x.device)
+            mask = (mask | eye)[:, None]  # (B, 1, N, L+N)
+        # The additive form scaled_dot_product_attention makes of a bool mask, made once for
+        # all the layers instead of once per layer (the same numbers).
+        mask = torch.where(mask, 0.0, -math.inf).to(x.dtype)
         kvs = []
         for i, block in enumerate(self.blocks):
             x, kv = block(x, mask, past[i] if past else None)
             kvs.append(kv)
-        return self.head(self.ln_f(x)), kvs
+        return F.linear(_layer_norm(self.ln_f, x), self.head.weight), kvs
 
     # --- training / full recomputation -------------------------------------------------------
 

@@ -6,17 +6,19 @@ greedy or top-k decoding collapses to a held pose, as C-T2M reports.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Annotated
 
 import torch
+
+from motion_env.motion.validation import CheckedConfig
 
 __all__ = ["SamplingConfig", "sample_tokens"]
 
 
 @dataclass
-class SamplingConfig:
+class SamplingConfig(CheckedConfig):
     """How tokens are sampled.
 
     Attributes:
@@ -26,17 +28,14 @@ class SamplingConfig:
             cost of a second GPT row per character).
     """
 
-    temperature: float = 1.0
+    temperature: Annotated[float, "(0, inf)"] = 1.0
     top_p: float | None = None
-    guidance: float = 1.0
+    guidance: Annotated[float, "[1, inf)"] = 1.0
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.temperature) and self.temperature > 0):
-            raise ValueError(f"SamplingConfig.temperature must be > 0, got {self.temperature!r}")
+        super().__post_init__()
         if self.top_p is not None and not 0.0 < self.top_p <= 1.0:
             raise ValueError(f"SamplingConfig.top_p must be in (0, 1] or None, got {self.top_p!r}")
-        if not (math.isfinite(self.guidance) and self.guidance >= 1.0):
-            raise ValueError(f"SamplingConfig.guidance must be >= 1, got {self.guidance!r}")
 
 
 def sample_tokens(

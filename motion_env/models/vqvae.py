@@ -20,17 +20,18 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Annotated
 
 import torch
 import torch.nn.functional as F
 from torch import nn
 
 from motion_env.motion.skeleton import FEATURE_DIM, NUM_JOINTS, RIC
-from motion_env.motion.validation import check_at_least, check_interval, check_positive_ints
+from motion_env.motion.validation import CheckedConfig, NonNegativeFloat, PositiveInt
 
 
 @dataclass
-class VQVAEConfig:
+class VQVAEConfig(CheckedConfig):
     """VQ-VAE hyper-parameters.
 
     Attributes:
@@ -46,25 +47,16 @@ class VQVAEConfig:
         velocity_weight: weight of the loss on frame-to-frame differences of the joint positions.
     """
 
-    feature_dim: int = FEATURE_DIM
-    width: int = 192
-    code_dim: int = 128
-    codebook_size: int = 512
-    rate: int = 4
-    depth: int = 2
-    dilation_growth: int = 3
-    ema_decay: float = 0.99
-    commit_weight: float = 0.02
-    velocity_weight: float = 0.5
-
-    def __post_init__(self) -> None:
-        check_positive_ints(
-            self, "feature_dim", "width", "code_dim", "codebook_size", "depth", "dilation_growth"
-        )
-        if self.rate not in (2, 4):
-            raise ValueError(f"VQVAEConfig.rate must be 2 or 4 (frames per token), got {self.rate!r}")
-        check_interval(self, "(0, 1)", "ema_decay")
-        check_at_least(self, 0, "commit_weight", "velocity_weight")
+    feature_dim: PositiveInt = FEATURE_DIM
+    width: PositiveInt = 192
+    code_dim: PositiveInt = 128
+    codebook_size: PositiveInt = 512
+    rate: Annotated[int, (2, 4)] = 4
+    depth: PositiveInt = 2
+    dilation_growth: PositiveInt = 3
+    ema_decay: Annotated[float, "(0, 1)"] = 0.99
+    commit_weight: NonNegativeFloat = 0.02
+    velocity_weight: NonNegativeFloat = 0.5
 
     @property
     def num_down(self) -> int:

@@ -1,11 +1,16 @@
-"""Checks shared across the package: array shapes and values, and the fields of config dataclasses.
+"""Checks shared across the package: array shapes and values, and the fields of config dataclasses
+(their bounds written in their annotations, checked by :class:`CheckedConfig`).
 
 Each raises ValueError naming the argument or the field (``VQVAEConfig.width must be ...``).
 """
 
 from __future__ import annotations
 
-from typing import Any
+import functools
+import typing
+from collections.abc import Collection
+from dataclasses import fields
+from typing import Annotated, Any
 
 import numpy as np
 
@@ -55,46 +60,76 @@ def check_positive(value: Any, name: str, unit: str = "") -> float:
 
 
 # ----------------------------------------------------------------------------------------------
-# Fields of config dataclasses (called from their __post_init__)
+# Fields of config dataclasses: each field's annotation carries its bounds (``Annotated``), and
+# :class:`CheckedConfig` checks them when the config is made.
 # ----------------------------------------------------------------------------------------------
 
-
-def check_positive_ints(config: Any, *names: str) -> None:
-    """ValueError unless each named field of `config` is an int >= 1."""
-    for name in names:
-        value = getattr(config, name)
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            raise ValueError(f"{type(config).__name__}.{name} must be a positive int, got {value!r}")
+PositiveInt = Annotated[int, ">= 1"]
+NonNegativeInt = Annotated[int, ">= 0"]
+PositiveFloat = Annotated[float, "> 0"]
+NonNegativeFloat = Annotated[float, ">= 0"]
+Fraction = Annotated[float, "[0, 1]"]
 
 
-def check_at_least(config: Any, low: float, *names: str) -> None:
-    """ValueError unless each named field of `config` is >= `low`."""
-    for name in names:
-        value = getattr(config, name)
-        if not value >= low:
-            raise ValueError(f"{type(config).__name__}.{name} must be >= {low}, got {value!r}")
+class CheckedConfig:
+    """Base of the config dataclasses whose fields carry their bounds in their annotation.
+
+    A field annotated ``Annotated[type, bounds]`` (or one of the aliases above: ``PositiveInt``,
+    ``NonNegativeFloat``, ``Fraction``, ...) is checked by ``__post_init__``; `bounds` is
+    ``">= 1"``, ``"> 0"``, an interval written as in maths (``"(0, 1]"`` leaves 0 out and takes
+    1 in; ``"(0, inf)"`` is a finite positive number) or a collection of the allowed values. An
+    ``int`` field must also hold an int (not a bool). A ValueError names the class, the field and
+    the value (``VQVAEConfig.width must be >= 1, got 0``). A config with checks of its own (two
+    fields together, a list of labels) calls ``super().__post_init__()`` first::
+
+        @dataclass
+        class Settings(CheckedConfig):
+            steps: PositiveInt = 24
+            rate: Annotated[float, "(0, 1]"] = 0.5
+            mode: Annotated[str, ("fast", "exact")] = "fast"
+    """
+
+    def __post_init__(self) -> None:
+        for name, kind, bounds in _declared_bounds(type(self)):
+            _check_bounds(self, name, bounds, integer=kind is int)
 
 
-def check_above(config: Any, low: float, *names: str) -> None:
-    """ValueError unless each named field of `config` is > `low`."""
-    for name in names:
-        value = getattr(config, name)
-        if not value > low:
-            raise ValueError(f"{type(config).__name__}.{name} must be > {low}, got {value!r}")
+@functools.cache
+def _declared_bounds(cls: type) -> tuple[tuple[str, Any, Any], ...]:
+    """(field, type, bounds) of each field of the dataclass `cls` annotated with bounds."""
+    hints = typing.get_type_hints(cls, include_extras=True)
+    return tuple(
+        (f.name, *typing.get_args(hints[f.name])[:2])
+        for f in fields(cls)
+        if typing.get_origin(hints[f.name]) is Annotated
+    )
 
 
-def check_interval(config: Any, interval: str, *names: str) -> None:
-    """ValueError unless each named field of `config` lies in `interval`, written as in maths:
-    ``"(0, 1]"`` leaves 0 out and takes 1 in, ``"[0, 1)"`` the other way round."""
-    low, high = (float(bound) for bound in interval[1:-1].split(","))
-    for name in names:
-        value = getattr(config, name)
-        above = value > low if interval[0] == "(" else value >= low
-        below = value < high if interval[-1] == ")" else value <= high
-        if not (above and below):
-            raise ValueError(f"{type(config).__name__}.{name} must be in {interval}, got {value!r}")
+def _check_bounds(config: Any, name: str, bounds: str | Collection[Any], integer: bool = False) -> None:
+    """ValueError unless the field `name` of `config` lies in `bounds` (as in :class:`CheckedConfig`)
+    and, with `integer`, is an int."""
+    value = getattr(config, name)
+    if isinstance(bounds, str):
+        whole = isinstance(value, int) and not isinstance(value, bool)
+        ok = _within(value, bounds) and (whole or not integer)
+        expected = bounds if bounds[0] == ">" else f"in {bounds}"
+        expected = f"an integer {expected}" if integer and not whole else expected
+    else:
+        ok, expected = value in bounds, f"one of {tuple(bounds)}"
+    if not ok:
+        raise ValueError(f"{type(config).__name__}.{name} must be {expected}, got {value!r}")
 
 
-def check_fraction(config: Any, *names: str) -> None:
-    """ValueError unless each named field of `config` is in [0, 1]."""
-    check_interval(config, "[0, 1]", *names)
+def _within(value: Any, bounds: str) -> bool:
+    """Whether `value` is within `bounds` (``">= 1"``, ``"> 0"`` or an interval like ``"[0, 1)"``)."""
+    try:
+        if bounds.startswith(">="):
+            return bool(value >= float(bounds[2:]))
+        if bounds.startswith(">"):
+            return bool(value > float(bounds[1:]))
+        low, high = (float(bound) for bound in bounds[1:-1].split(","))
+        above = value > low if bounds[0] == "(" else value >= low
+        below = value < high if bounds[-1] == ")" else value <= high
+        return bool(above and below)
+    except TypeError:  # None, a string, ...: not a number at all
+        return False

@@ -12,14 +12,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import Annotated
 
 import numpy as np
 
-from motion_env.motion.validation import check_above, check_interval
+from motion_env.motion.validation import CheckedConfig, PositiveFloat
 
 
 @dataclass(frozen=True)
-class Camera:
+class Camera(CheckedConfig):
     """A perspective camera looking at a target point from a fixed direction.
 
     Attributes:
@@ -33,14 +34,10 @@ class Camera:
     """
 
     azimuth_deg: float = 55.0
-    elevation_deg: float = 18.0
-    distance: float = 4.8
-    focal: float = 2.4
+    elevation_deg: Annotated[float, "(-89, 89)"] = 18.0
+    distance: PositiveFloat = 4.8
+    focal: PositiveFloat = 2.4
     look_height: float = 0.8
-
-    def __post_init__(self) -> None:
-        check_above(self, 0, "distance", "focal")
-        check_interval(self, "(-89, 89)", "elevation_deg")
 
     def basis(self) -> np.ndarray:
         """(3, 3) rows: the camera's right, up and forward unit vectors in world coordinates."""

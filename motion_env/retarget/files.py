@@ -85,7 +85,7 @@ class MotionLike(Protocol):
 
 @dataclass
 class ClipArrays:
-    """A clip as read from a file, unchecked: the fields of ``RobotMotion``, which checks them."""
+    """A clip as read from a file, unchecked (``RobotMotion`` is this with its fields checked)."""
 
     qpos: np.ndarray
     fps: float

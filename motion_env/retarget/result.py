@@ -12,19 +12,19 @@ reads and writes plain arrays (this module imports it, not the other way round).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from motion_env.retarget.files import ROOT_COLUMNS, read_robot_motion, write_robot_motion
+from motion_env.retarget.files import ROOT_COLUMNS, ClipArrays, read_robot_motion, write_robot_motion
 
 __all__ = ["ROOT_COLUMNS", "RobotMotion", "load_robot_motion"]
 
 
 @dataclass
-class RobotMotion:
-    """A robot clip.
+class RobotMotion(ClipArrays):
+    """A robot clip: the fields of a :class:`~motion_env.retarget.files.ClipArrays`, checked.
 
     Attributes:
         qpos: (T, nq) MuJoCo qpos per frame: root position, root quaternion (w, x, y, z), joints.
@@ -36,13 +36,6 @@ class RobotMotion:
             retargeting (None for a clip read from a CSV).
         residual_names: the K human joints those frames follow (``"left_wrist"``, ...).
     """
-
-    qpos: np.ndarray
-    fps: float
-    joint_names: tuple[str, ...]
-    robot: str
-    residuals: np.ndarray | None = None
-    residual_names: tuple[str, ...] = field(default=())
 
     def __post_init__(self) -> None:
         self.qpos = np.asarray(self.qpos, dtype=np.float64)

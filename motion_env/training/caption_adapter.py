@@ -46,7 +46,7 @@ from motion_env.data.captions.paraphrases import paraphrases_for_bandai
 from motion_env.data.dataset import read_captions
 from motion_env.models.caption_adapter import CaptionAdapter, CaptionAdapterConfig
 from motion_env.models.checkpoint import atomic_torch_save
-from motion_env.motion.validation import check_above, check_at_least
+from motion_env.motion.validation import NonNegativeFloat, PositiveFloat, PositiveInt
 from motion_env.text.encoders import DEFAULT_TEXT_ENCODER, TextEncoder, jitter_embeddings
 from motion_env.training import loop
 from motion_env.training.config import TrainConfig
@@ -60,28 +60,22 @@ VAL_SEED = 10_000  # the paraphrase seed of the validation captions (training dr
 class CaptionAdapterTrainConfig(TrainConfig):
     """Settings of :func:`train_caption_adapter` (each is a ``motion-env train`` option)."""
 
-    steps: int = 3000  # optimisation steps
-    batch_size: int = 256  # captions per step
-    lr: float = 1e-3  # peak learning rate (linear warm-up, cosine decay)
-    paraphrases: int = 120  # paraphrases drawn per (action, style) pair
-    prior: float = 0.5  # pairs are drawn in proportion to their training clips ** prior
-    text_noise: float = 0.3  # jitter of the input embeddings (expected norm)
-    label_weight: float = 0.1  # weight of the action and style cross-entropies
-    hidden: int = 512  # width of the adapter's hidden layers
-    layers: int = 2  # hidden layers
-    dropout: float = 0.1  # dropout on the hidden layers
-    temperature: float = 1.0  # sharpness of the pair weights at use (stored in the model config)
+    steps: PositiveInt = 3000  # optimisation steps
+    batch_size: PositiveInt = 256  # captions per step
+    lr: PositiveFloat = 1e-3  # peak learning rate (linear warm-up, cosine decay)
+    paraphrases: PositiveInt = 120  # paraphrases drawn per (action, style) pair
+    prior: NonNegativeFloat = 0.5  # pairs are drawn in proportion to their training clips ** prior
+    text_noise: NonNegativeFloat = 0.3  # jitter of the input embeddings (expected norm)
+    label_weight: NonNegativeFloat = 0.1  # weight of the action and style cross-entropies
+    hidden: PositiveInt = 512  # width of the adapter's hidden layers
+    layers: PositiveInt = 2  # hidden layers
+    dropout: NonNegativeFloat = 0.1  # dropout on the hidden layers
+    temperature: PositiveFloat = 1.0  # sharpness of the pair weights at use (stored in the model config)
     encoder: str = DEFAULT_TEXT_ENCODER  # the text encoder the adapter reads: minilm, mpnet, clip (+sides)
     encoder_weights: str | None = None  # weights of --encoder on disk (none: the encoder's own search)
     target_encoder: str = DEFAULT_TEXT_ENCODER  # the encoder the generator's models read (the targets)
-    save_every: int = 500
-    log_every: int = 250
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        check_at_least(self, 1, "steps", "batch_size", "paraphrases", "hidden", "layers")
-        check_at_least(self, 0, "prior", "text_noise", "label_weight", "dropout")
-        check_above(self, 0, "lr", "temperature")
+    save_every: PositiveInt = 500
+    log_every: PositiveInt = 250
 
 
 @dataclass

@@ -24,7 +24,7 @@ import time
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 import torch
@@ -39,7 +39,7 @@ from motion_env.models.classifier import (
     pose_features,
     save_classifier,
 )
-from motion_env.motion.validation import check_above, check_at_least, check_fraction
+from motion_env.motion.validation import NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt
 from motion_env.training import loop
 from motion_env.training.config import TrainConfig
 
@@ -53,30 +53,24 @@ _RESUME_KEYS = ("epochs", "batch_size", "lr", "weight_decay", "min_takes", "seed
 class ClassifierTrainConfig(TrainConfig):
     """How to train the classifier (stored in its checkpoint under ``"settings"``)."""
 
-    epochs: int = 15  # passes over the train clips (the best validated epoch is kept)
-    batch_size: int = 64  # clips per step (one random window of each)
-    lr: float = 2e-3  # peak AdamW learning rate (one-cycle schedule over all the epochs)
-    weight_decay: float = 1e-2  # AdamW weight decay
-    min_takes: int = 100  # an action or style is a class when the train split has this many clips
-    window: int = 80  # frames per window (4 s at 20 fps)
-    width: int = 96  # channels of the convolutions
-    layers: int = 3  # residual convolution blocks
-    kernel: int = 5  # temporal kernel size (odd)
-    dropout: float = 0.1  # dropout in the blocks and before the heads
-    log_every: int = 1  # epochs between loss lines
-    save_every: int = 1  # epochs between checkpoints (one is also written at the end)
-    eval_every: int = 1  # epochs between validations (0: only at the end); the best one is kept
+    epochs: PositiveInt = 15  # passes over the train clips (the best validated epoch is kept)
+    batch_size: PositiveInt = 64  # clips per step (one random window of each)
+    lr: PositiveFloat = 2e-3  # peak AdamW learning rate (one-cycle schedule over all the epochs)
+    weight_decay: NonNegativeFloat = 1e-2  # AdamW weight decay
+    min_takes: PositiveInt = 100  # an action or style is a class when the train split has this many clips
+    window: PositiveInt = 80  # frames per window (4 s at 20 fps)
+    width: PositiveInt = 96  # channels of the convolutions
+    layers: PositiveInt = 3  # residual convolution blocks
+    kernel: PositiveInt = 5  # temporal kernel size (odd)
+    dropout: Annotated[float, "[0, 1)"] = 0.1  # dropout in the blocks and before the heads
+    log_every: PositiveInt = 1  # epochs between loss lines
+    save_every: PositiveInt = 1  # epochs between checkpoints (one is also written at the end)
+    eval_every: NonNegativeInt = 1  # epochs between validations (0: only at the end); the best one is kept
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        check_at_least(self, 1, "epochs", "batch_size", "min_takes", "window", "width", "layers", "kernel")
-        check_above(self, 0, "lr")
-        check_at_least(self, 0, "weight_decay")
-        check_fraction(self, "dropout")
         if self.kernel % 2 == 0:
             raise ValueError(f"{type(self).__name__}.kernel must be odd, got {self.kernel}")
-        if self.dropout >= 1:
-            raise ValueError(f"{type(self).__name__}.dropout must be < 1, got {self.dropout}")
 
 
 @dataclass

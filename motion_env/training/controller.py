@@ -21,7 +21,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 import torch
@@ -34,10 +34,11 @@ from motion_env.models.checkpoint import (
     load_checkpoint,
     text_encoder_record,
 )
-from motion_env.models.controller import ControllerConfig, PathController, to_heading_frame_torch
+from motion_env.models.controller import ControllerConfig, PathController
+from motion_env.models.waypoint_features import to_heading_frame_torch
 from motion_env.motion.skeleton import FPS
 from motion_env.motion.trajectory import root_path_from_joints, waypoint_errors
-from motion_env.motion.validation import check_above, check_at_least
+from motion_env.motion.validation import NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt
 from motion_env.text.encoders import DEFAULT_TEXT_ENCODER, TextEncoder, jitter_embeddings
 from motion_env.training import loop
 from motion_env.training.config import TrainConfig
@@ -342,25 +343,21 @@ def evaluate_controller(
 class ControllerTrainConfig(TrainConfig):
     """How to train the path controller (stored in its checkpoint under ``"settings"``)."""
 
-    steps: int = 2000  # total optimisation steps (those of a resumed run included)
-    batch_size: int = 64  # windows per step
-    lr: float = 1e-3  # peak AdamW learning rate (linear warm-up, cosine decay to a tenth)
-    window: int = 100  # frames per training window
-    warmup: int = 50  # warm-up steps of the learning rate
-    grad_clip: float = 1.0  # gradient norm clip
-    text_noise: float = 0.3  # expected norm of the noise added to caption embeddings (0: off)
+    steps: PositiveInt = 2000  # total optimisation steps (those of a resumed run included)
+    batch_size: PositiveInt = 64  # windows per step
+    lr: PositiveFloat = 1e-3  # peak AdamW learning rate (linear warm-up, cosine decay to a tenth)
+    window: Annotated[int, ">= 2"] = 100  # frames per training window
+    warmup: NonNegativeInt = 50  # warm-up steps of the learning rate
+    grad_clip: PositiveFloat = 1.0  # gradient norm clip
+    text_noise: NonNegativeFloat = 0.3  # expected norm of the noise added to caption embeddings (0: off)
     untimed_by: str = "time"  # untimed waypoints 1-3 s apart (time, as shipped) or 1.5-6 m (distance)
     encoder: str = DEFAULT_TEXT_ENCODER  # text encoder name (motion_env.text.load_text_encoder)
-    eval_windows: int = 256  # val windows per evaluation
-    log_every: int = 25  # steps between loss lines in the log (running averages)
-    save_every: int = 50  # steps between checkpoints (one is also written at the end)
+    eval_windows: PositiveInt = 256  # val windows per evaluation
+    log_every: PositiveInt = 25  # steps between loss lines in the log (running averages)
+    save_every: PositiveInt = 50  # steps between checkpoints (one is also written at the end)
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        check_at_least(self, 1, "steps", "batch_size", "eval_windows")
-        check_at_least(self, 2, "window")
-        check_at_least(self, 0, "warmup", "text_noise")
-        check_above(self, 0, "lr", "grad_clip")
         if self.untimed_by not in ("distance", "time"):
             raise ValueError(
                 f"ControllerTrainConfig.untimed_by must be 'distance' or 'time', got {self.untimed_by!r}"

@@ -28,7 +28,7 @@ from motion_env.models.checkpoint import (
 from motion_env.models.gpt import GPTConfig, TokenGPT
 from motion_env.models.normalizer import Normalizer
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
-from motion_env.motion.validation import check_above, check_at_least, check_fraction
+from motion_env.motion.validation import Fraction, NonNegativeFloat, PositiveFloat, PositiveInt
 from motion_env.text.encoders import DEFAULT_TEXT_ENCODER, TextEncoder, jitter_embeddings
 from motion_env.training import loop
 from motion_env.training.config import TrainConfig
@@ -40,20 +40,13 @@ CHECKPOINT_KIND = "gpt"
 class GPTTrainConfig(TrainConfig):
     """How to train the token GPT (stored in its checkpoint under ``"settings"``)."""
 
-    steps: int = 1500  # total optimisation steps (those of a resumed run included)
-    batch_size: int = 64  # token crops per step
-    lr: float = 3e-4  # peak AdamW learning rate (linear warm-up, cosine decay to a tenth)
-    text_drop: float = 0.1  # share of samples trained with the null text (classifier-free guidance)
-    start_crop: float = 0.3  # share of crops that start at the clip's first token
-    text_noise: float = 0.3  # expected norm of the noise added to caption embeddings (0: off)
+    steps: PositiveInt = 1500  # total optimisation steps (those of a resumed run included)
+    batch_size: PositiveInt = 64  # token crops per step
+    lr: PositiveFloat = 3e-4  # peak AdamW learning rate (linear warm-up, cosine decay to a tenth)
+    text_drop: Fraction = 0.1  # share of samples trained with the null text (classifier-free guidance)
+    start_crop: Fraction = 0.3  # share of crops that start at the clip's first token
+    text_noise: NonNegativeFloat = 0.3  # expected norm of the noise added to caption embeddings (0: off)
     encoder: str = DEFAULT_TEXT_ENCODER  # text encoder name (motion_env.text.load_text_encoder)
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        check_at_least(self, 1, "steps", "batch_size")
-        check_above(self, 0, "lr")
-        check_fraction(self, "text_drop", "start_crop")
-        check_at_least(self, 0, "text_noise")
 
 
 class _TokenSet:

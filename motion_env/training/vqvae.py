@@ -25,7 +25,7 @@ from motion_env.models.checkpoint import config_from_dict, read_checkpoint
 from motion_env.models.normalizer import Normalizer
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
 from motion_env.motion.skeleton import NUM_JOINTS, RIC
-from motion_env.motion.validation import check_above, check_at_least
+from motion_env.motion.validation import NonNegativeFloat, PositiveFloat, PositiveInt
 from motion_env.training import loop
 from motion_env.training.config import TrainConfig
 
@@ -36,23 +36,20 @@ CHECKPOINT_KIND = "vqvae"
 class VQVAETrainConfig(TrainConfig):
     """How to train the VQ-VAE (stored in its checkpoint under ``"settings"``)."""
 
-    steps: int = 3000  # total optimisation steps (those of a resumed run included)
-    batch_size: int = 64  # windows per step
-    lr: float = 4e-4  # peak AdamW learning rate (linear warm-up, cosine decay to a tenth)
-    window: int = 64  # frames per training window (a multiple of the VQ-VAE's rate)
-    save_every: int = 250  # steps between checkpoints (one is also written at the end)
+    steps: PositiveInt = 3000  # total optimisation steps (those of a resumed run included)
+    batch_size: PositiveInt = 64  # windows per step
+    lr: PositiveFloat = 4e-4  # peak AdamW learning rate (linear warm-up, cosine decay to a tenth)
+    window: PositiveInt = 64  # frames per training window (a multiple of the VQ-VAE's rate)
+    save_every: PositiveInt = 250  # steps between checkpoints (one is also written at the end)
     init: str | None = None  # VQ-VAE checkpoint (packaged ones too) a fresh run starts from, Mean/Std kept
     freeze_encoder: bool = False  # train the decoder only: encoder and codebook stay, so do all tokens
-    vel_weight: float = 0.0  # L1 loss on frame-to-frame changes of the root-relative joint positions
-    acc_weight: float = 0.0  # L1 loss on their second differences (acceleration)
-    jerk_weight: float = 0.0  # L1 loss on their third differences (jerk)
+    vel_weight: NonNegativeFloat = 0.0  # L1 loss on frame-to-frame changes of root-relative joint positions
+    acc_weight: NonNegativeFloat = 0.0  # L1 loss on their second differences (acceleration)
+    jerk_weight: NonNegativeFloat = 0.0  # L1 loss on their third differences (jerk)
     smooth_joints: str = "all"  # joints those losses apply to: "all", or "upper" (spine, head, arms)
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        check_at_least(self, 1, "steps", "batch_size", "window")
-        check_above(self, 0, "lr")
-        check_at_least(self, 0, "vel_weight", "acc_weight", "jerk_weight")
         if self.smooth_joints not in SMOOTH_JOINTS:
             raise ValueError(
                 f"VQVAETrainConfig.smooth_joints must be one of {tuple(SMOOTH_JOINTS)}, "

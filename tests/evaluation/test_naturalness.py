@@ -22,6 +22,7 @@ from motion_env.text.encoders import TextEncoder
 
 # Takes per action of the synthetic test split: "walk" is reported, "wave-right-hand" has too few.
 TAKES = {"walk": 3, "wave-right-hand": 2}
+SPEEDS = {"walk": 1.2, "wave-right-hand": 0.0}  # m/s: the waves stand still
 FRAMES = 41
 
 
@@ -44,28 +45,15 @@ def _walk(rng: np.random.Generator, frames: int, speed: float) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def natural_dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def natural_dataset(tmp_path_factory: pytest.TempPathFactory, write_labelled_dataset) -> Path:
     """A HumanML3D-layout dataset with ``index.csv``: TAKES walks and waves in the test split."""
-    from motion_env.motion.features import joints_to_features
-
-    root = tmp_path_factory.mktemp("natural")
-    for sub in ("new_joints", "new_joint_vecs", "texts"):
-        (root / sub).mkdir()
     rng = np.random.default_rng(0)
-    rows = ["name,split,source,take,label,style,mirrored,frames,file"]
-    names = []
+    takes = []
     for action, count in TAKES.items():
         for k in range(count):
-            name = f"dataset-1_{action}_normal_{k:03d}"
-            joints = _walk(rng, FRAMES + 1, 1.2 if action == "walk" else 0.0)
-            np.save(root / "new_joints" / f"{name}.npy", joints[:-1].astype(np.float32))
-            np.save(root / "new_joint_vecs" / f"{name}.npy", joints_to_features(joints))
-            (root / "texts" / f"{name}.txt").write_text(f"a person does a {action}\n")
-            rows.append(f"{name},test,bandai,{name},{action},normal,0,{FRAMES},x.bvh")
-            names.append(name)
-    (root / "index.csv").write_text("\n".join(rows) + "\n")
-    (root / "test.txt").write_text("\n".join(names) + "\n")
-    return root
+            joints = _walk(rng, FRAMES + 1, SPEEDS[action])
+            takes.append((f"dataset-1_{action}_normal_{k:03d}", "test", action, "normal", joints))
+    return write_labelled_dataset(tmp_path_factory.mktemp("natural"), takes)
 
 
 class _HashText(TextEncoder):

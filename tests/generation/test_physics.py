@@ -213,3 +213,38 @@ def test_real_motion_moves_little(humanml3d_sample) -> None:
     assert np.abs(out - joints[:n])[:, 0, 1].max() < 0.05  # the pelvis
     assert np.abs(out - joints[:n]).mean() < 0.01
     np.testing.assert_allclose(_bones(out), _bones(joints[:n]), atol=1e-4)
+
+
+def test_long_plans_are_solved_banded_to_the_same_heights() -> None:
+    """Whole clips are planned in the heights (banded, O(m) a step); the stream's short plans over
+    the second differences (dense): both find the one solution of the same problem, and a clip of
+    400 frames takes milliseconds (the dense solve took a minute)."""
+    import time
+
+    from motion_env.generation import height_plan
+
+    rng = np.random.default_rng(0)
+    for m, h in ((40, 0), (90, 3)):
+        raw = 0.9 + 0.05 * np.sin(np.arange(m) / 3) + 0.01 * rng.standard_normal(m)  # bounds bite
+        flight = np.zeros(m, dtype=bool)
+        flight[m // 3 : m // 3 + 6] = True
+        past, past_raw = (raw[:h] + 0.002, raw[:h]) if h else (None, None)
+        banded = plan_heights(raw[h:], flight, past, past_raw)
+        saved = height_plan._DENSE_FRAMES
+        try:
+            height_plan._DENSE_FRAMES = 10**6
+            dense = plan_heights(raw[h:], flight, past, past_raw)
+        finally:
+            height_plan._DENSE_FRAMES = saved
+        np.testing.assert_allclose(banded, dense, atol=1e-9)
+    m = 400
+    raw = 0.9 + 0.05 * np.sin(np.arange(m) / 3) + 0.002 * rng.standard_normal(m)
+    flight = np.zeros(m, dtype=bool)
+    flight[100:110] = flight[250:262] = True
+    t0 = time.perf_counter()
+    heights = plan_heights(raw, flight)
+    assert time.perf_counter() - t0 < 2.0
+    acc = np.diff(heights, 2) * FPS**2
+    assert np.all(acc[~flight[1:-1]] >= STANCE_ACCELERATION[0] - 1e-6)
+    assert np.all(acc[~flight[1:-1]] <= STANCE_ACCELERATION[1] + 1e-6)
+    np.testing.assert_allclose(acc[flight[1:-1]], -GRAVITY, atol=1e-6)

@@ -179,3 +179,112 @@ def test_shipped_model_hits_a_keyframe_quickly(pretrained_generator) -> None:
     m = gen.generate("a person walks forward", num_frames=100, seed=0, joint_targets=targets)
     assert time.perf_counter() - t0 < 5.0
     assert np.linalg.norm(m.joints[60, RIGHT_WRIST] - targets[60, RIGHT_WRIST]) < 0.01
+
+
+# ----------------------------------------------------------------------------------------------
+# Smoothness of the closed-form finish (scripts/measure_refine_smoothness.py measures it whole)
+# ----------------------------------------------------------------------------------------------
+
+
+def _chain(opening: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(N, 3) root, middle, end of a two-bone chain (bones 0.3 m) opened to `opening` of its length."""
+    n = len(opening)
+    root = np.zeros((n, 3))
+    d = 0.6 * opening
+    h = np.sqrt(np.maximum(0.09 - (d / 2) ** 2, 0.0))
+    mid = np.stack([d / 2, -h, np.zeros(n)], 1)  # bent towards -y
+    end = np.stack([d, np.zeros(n), np.zeros(n)], 1)
+    return root, mid, end
+
+
+def test_two_bone_leaves_an_unmoved_chain_and_keeps_bones() -> None:
+    from motion_env.generation.closed_form import _two_bone
+
+    root, mid, end = _chain(np.linspace(0.05, 0.999, 40))
+    new_mid, new_end = _two_bone(root, mid, end, end, soft=0.03)
+    np.testing.assert_allclose(new_mid, mid, atol=1e-6)
+    np.testing.assert_allclose(new_end, end, atol=1e-6)
+    rng = np.random.default_rng(1)
+    goal = end + rng.normal(size=end.shape) * 0.1
+    new_mid, new_end = _two_bone(root, mid, end, goal, np.array([0.0, 0.0, 1.0]), soft=0.03)
+    np.testing.assert_allclose(np.linalg.norm(new_mid - root, axis=1), 0.3, atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(new_end - new_mid, axis=1), 0.3, atol=1e-9)
+
+
+def test_two_bone_moves_its_middle_joint_no_more_than_the_analytic_solve_and_reaches_softly() -> None:
+    """Small moves of the end, in every direction, at every opening: the middle joint moves no
+    more than the plain analytic solve's (feet.two_bone_ik); out past full extension the chain
+    straightens softly instead of snapping."""
+    from motion_env.generation.closed_form import _two_bone
+
+    rng = np.random.default_rng(0)
+    for opening in (0.04, 0.1, 0.3, 0.9):
+        root, mid, end = _chain(np.full(200, opening))
+        move = rng.normal(size=(200, 3))
+        move *= 0.01 / np.linalg.norm(move, axis=1, keepdims=True)
+        new_mid, _ = _two_bone(root, mid, end, end + move)
+        old_mid, _ = two_bone_ik(root, mid, end, end + move)
+        gain = np.linalg.norm(new_mid - mid, axis=1)
+        assert gain.max() <= np.linalg.norm(old_mid - mid, axis=1).max() + 1e-6
+    n = 60
+    root, mid, end = _chain(np.full(n, 0.9))
+    goal = end + np.linspace(0.0, 0.15, n)[:, None] * [1.0, 0.0, 0.0]
+    new_mid, new_end = _two_bone(root, mid, end, goal, soft=0.03)
+    old_mid, _ = two_bone_ik(root, mid, end, goal)
+    jerk = np.linalg.norm(np.diff(new_mid, 2, axis=0), axis=1).max()
+    assert jerk < 0.5 * np.linalg.norm(np.diff(old_mid, 2, axis=0), axis=1).max()
+    assert 0.6 - 0.03 < np.linalg.norm(new_end[-1]) < 0.6
+
+
+def test_head_target_lowers_the_pelvis_and_leans_instead_of_bending_the_spine(walk) -> None:
+    targets = np.full(walk.shape, np.nan, np.float32)
+    frames = np.arange(10, 50, 3)
+    rng = np.random.default_rng(0)
+    # Dense head targets a few cm lower and forward, noisy as a real take's head against ours.
+    targets[frames, HEAD] = (
+        walk[frames, HEAD] + [0.03, -0.05, 0.04] + rng.normal(size=(len(frames), 3)) * 0.01
+    )
+    out = solve_limbs(walk, targets, [], np.zeros((len(walk), 2), bool))
+    assert np.linalg.norm(out[frames, HEAD] - targets[frames, HEAD], axis=-1).max() < 2e-3
+    # The spine keeps its shape (spine3 on its way from the pelvis to the head), so the upper body
+    # does not swing with the noise: no joint accelerates more than the clip plus the targets ask.
+    spine = np.linalg.norm(out[:, 9] - out[:, 0], axis=-1) + np.linalg.norm(out[:, 15] - out[:, 9], axis=-1)
+    straight = np.linalg.norm(out[:, 15] - out[:, 0], axis=-1)
+    before = np.linalg.norm(walk[:, 15] - walk[:, 0], axis=-1)
+    np.testing.assert_allclose(straight / spine, before / spine, atol=1e-3)
+    assert out[frames, 0, 1].mean() < walk[frames, 0, 1].mean() - 0.03
+
+
+def test_paths_are_steered_only_to_targets_out_of_reach() -> None:
+    from motion_env.generation.root_bending import implied_route, within_reach
+
+    path = np.zeros((100, 3), np.float32)
+    path[:, 1] = np.linspace(0.0, 4.0, 100)  # walks 4 m along z
+    targets = np.full((100, 22, 3), np.nan, np.float32)
+    targets[50, RIGHT_WRIST] = [0.4, 1.2, 2.1]  # an arm's length from where the body is then
+    assert within_reach(targets, path) and implied_route(targets, path=path) is None
+    assert implied_route(targets) is not None  # without the path: steered, as before
+    targets[80, 0] = [1.5, 0.9, 3.2]  # the pelvis 1.5 m aside: the body has to walk there
+    assert not within_reach(targets, path)
+    route = implied_route(targets, path=path)
+    assert route is not None and route[-1, 2] == 80
+
+
+def test_bent_root_does_not_jump_at_the_start_or_spin_for_a_side_step() -> None:
+    from motion_env.generation.root_bending import bend_root
+
+    t = 100
+    path = np.zeros((t, 3), np.float32)
+    path[:, 1] = np.linspace(0.0, 3.0, t)
+    joints = np.zeros((t, 22, 3), np.float32)
+    joints[:, :, [0, 2]] = path[:, None, :2]
+    targets = np.full((t, 22, 3), np.nan, np.float32)
+    targets[1, HEAD] = [0.15, 1.6, path[1, 1]]  # the head 15 cm aside at frame 1
+    bent = bend_root(path, joints, targets, None)
+    assert np.linalg.norm(bent[1, :2] - bent[0, :2]) < 0.05  # the limbs reach, the path eases in
+    targets = np.full((t, 22, 3), np.nan, np.float32)
+    targets[60, 0] = [0.0, 0.9, path[60, 1]]
+    targets[63, 0] = [0.12, 0.9, path[63, 1]]  # a 12 cm side step in 3 frames
+    bent = bend_root(path, joints, targets, None)
+    np.testing.assert_allclose(bent[[60, 63]][:, :2], targets[[60, 63], 0][:, [0, 2]], atol=1e-5)
+    assert np.abs(np.diff(bent[:, 2])).max() < 0.15  # radians per frame: no spin

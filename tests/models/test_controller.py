@@ -6,12 +6,8 @@ import numpy as np
 import pytest
 import torch
 
-from motion_env.models.controller import (
-    ControllerConfig,
-    PathController,
-    from_heading_frame_torch,
-    to_heading_frame_torch,
-)
+from motion_env.models.controller import ControllerConfig, PathController
+from motion_env.models.waypoint_features import from_heading_frame_torch, to_heading_frame_torch
 from motion_env.motion.kinematics import from_heading_frame, to_heading_frame
 
 TINY = ControllerConfig(text_dim=16, text_proj=8, hidden=32, mlp=32)

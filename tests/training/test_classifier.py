@@ -31,29 +31,17 @@ def _take(speed: float, frames: int, rng: np.random.Generator) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def labelled_dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A HumanML3D-layout dataset with ``index.csv``: two Bandai takes of each KINDS per split."""
-    from motion_env.motion.features import joints_to_features
-
-    root = tmp_path_factory.mktemp("labelled")
-    for sub in ("new_joints", "new_joint_vecs", "texts"):
-        (root / sub).mkdir()
+def labelled_dataset(tmp_path_factory: pytest.TempPathFactory, write_labelled_dataset) -> Path:
+    """A HumanML3D-layout dataset with ``index.csv``: two Bandai takes of each KINDS in train, one
+    in val and test."""
     rng = np.random.default_rng(0)
-    rows = ["name,split,source,take,label,style,mirrored,frames,file"]
-    for split in ("train", "val", "test"):
-        names = []
-        for action, style, speed in KINDS:
-            for k in range(2 if split == "train" else 1):
-                name = f"{split}-{action}_{style}_{k}"
-                joints = _take(speed, 31, rng)
-                np.save(root / "new_joints" / f"{name}.npy", joints[:-1].astype(np.float32))
-                np.save(root / "new_joint_vecs" / f"{name}.npy", joints_to_features(joints))
-                (root / "texts" / f"{name}.txt").write_text(f"a person does a {action}\n")
-                rows.append(f"{name},{split},bandai,{name},{action},{style},0,30,x.bvh")
-                names.append(name)
-        (root / f"{split}.txt").write_text("\n".join(names) + "\n")
-    (root / "index.csv").write_text("\n".join(rows) + "\n")
-    return root
+    takes = [
+        (f"{split}-{action}_{style}_{k}", split, action, style, _take(speed, 31, rng))
+        for split in ("train", "val", "test")
+        for action, style, speed in KINDS
+        for k in range(2 if split == "train" else 1)
+    ]
+    return write_labelled_dataset(tmp_path_factory.mktemp("labelled"), takes)
 
 
 def _weights(path: Path) -> dict[str, torch.Tensor]:
@@ -100,7 +88,7 @@ def test_a_resumed_run_ends_with_the_weights_of_an_uninterrupted_one(
     [
         ({"epochs": 0}, "ClassifierTrainConfig.epochs must be >= 1, got 0"),
         ({"kernel": 4}, "ClassifierTrainConfig.kernel must be odd, got 4"),
-        ({"dropout": 1.0}, "ClassifierTrainConfig.dropout must be < 1"),
+        ({"dropout": 1.0}, r"ClassifierTrainConfig.dropout must be in \[0, 1\), got 1.0"),
         ({"lr": 0.0}, "ClassifierTrainConfig.lr must be > 0"),
     ],
 )

@@ -1,0 +1,47 @@
+"""The bench's CPU-time equivalents: scaled by the calibration's own CPU time, printed beside the
+wall-time ones."""
+
+from __future__ import annotations
+
+import pytest
+
+from motion_env.evaluation import bench
+from motion_env.evaluation.bench import REFERENCE_CALIBRATION_S, calibrated, calibration_times
+
+
+def test_calibration_gives_wall_and_cpu_time() -> None:
+    wall, cpu = calibration_times()
+    assert wall > 0 and cpu > 0
+    assert bench.calibration_s() > 0
+
+
+def test_cpu_equivalents_scale_by_the_cpu_calibration(monkeypatch) -> None:
+    times = iter([(0.064, 0.048), (0.064, 0.048)])  # wall 2x, CPU 1.5x the quiet reference
+    monkeypatch.setattr(bench, "calibration_times", lambda: next(times))
+    measured = {"median": 10.0, "steps_per_s": 50.0, "runs": 3, "cpu": {"median": 8.0, "steps_per_s": 60.0}}
+    out = calibrated(lambda: measured)
+    assert out["calibration_ms"] == pytest.approx(64.0) and out["calibration_cpu_ms"] == pytest.approx(48.0)
+    wall_scale, cpu_scale = REFERENCE_CALIBRATION_S / 0.064, REFERENCE_CALIBRATION_S / 0.048
+    assert out["quiet"]["median"] == pytest.approx(10.0 * wall_scale)
+    assert out["quiet"]["steps_per_s"] == pytest.approx(50.0 / wall_scale)
+    assert out["quiet_cpu"]["median"] == pytest.approx(8.0 * cpu_scale)
+    assert out["quiet_cpu"]["steps_per_s"] == pytest.approx(60.0 / cpu_scale)
+    assert "runs" not in out["quiet"]
+
+
+def test_table_prints_both_equivalents() -> None:
+    clip = {"median": 300.0, "p90": 320.0, "runs": 10, "frames": 200, "calibration_ms": 64.0}
+    clip.update(calibration_cpu_ms=40.0, quiet={"median": 150.0}, quiet_cpu={"median": 180.0})
+    results = {
+        "model": "m",
+        "untrained": False,
+        "device": "cpu",
+        "hardware": {"cpu": "x86_64", "cpu_count": 2, "torch_threads": 1},
+        "clip_latency_ms": clip,
+        "stream": [],
+        "stream_lookahead_frames": 20,
+        "control_delay_frames": 4,
+    }
+    text = bench.format_results(results)
+    assert "cpu equiv." in text and "180.0" in text and "150.0" in text
+    assert "calibration 40-40 ms of CPU" in text

@@ -1,0 +1,139 @@
+"""The feet stage's leg: soft reach, smooth release, no knee snap; the arms' rebuild on bone lengths."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from motion_env.evaluation.metrics import joint_acceleration
+from motion_env.generation.feet import FOOT_BLEND, LEGS, FootPinner, release_fade, soft_reach
+from motion_env.generation.recompose import ARMS, on_bone_lengths
+from motion_env.motion.kinematics import bone_lengths, with_bone_lengths
+from motion_env.motion.skeleton import BONE_LENGTHS, PARENTS, RAW_OFFSETS
+
+
+def _pose() -> np.ndarray:
+    """A standing pose on the skeleton's bones, knees a little bent, arms hanging: (22, 3)."""
+    dirs = RAW_OFFSETS.astype(np.float64)
+    for thigh, shin in ((4, 7), (5, 8)):
+        dirs[thigh], dirs[shin] = (0.0, -1.0, 0.25), (0.0, -1.0, -0.25)
+    for upper, fore in ((18, 20), (19, 21)):
+        dirs[upper], dirs[fore] = (0.0, -1.0, 0.05), (0.0, -1.0, 0.3)
+    dirs[1:] /= np.linalg.norm(dirs[1:], axis=1, keepdims=True)
+    pose = np.zeros((22, 3))
+    pose[0, 1] = 0.95
+    for j in range(1, 22):
+        pose[j] = pose[PARENTS[j]] + dirs[j] * BONE_LENGTHS[j]
+    return pose
+
+
+def test_release_fade_goes_smoothly_from_one_to_zero() -> None:
+    since = np.arange(0, FOOT_BLEND + 3)
+    fade = release_fade(since)
+    assert fade[0] == 1.0 and np.all(fade[FOOT_BLEND + 1 :] == 0.0)
+    assert np.all(np.diff(fade) <= 0)
+    # No step in the correction's speed where the fade starts and ends: its first and last steps
+    # are smaller than a linear fade's.
+    step = -np.diff(fade)
+    assert step[0] < 1.0 / (FOOT_BLEND + 1) and step[FOOT_BLEND] < 1.0 / (FOOT_BLEND + 1)
+
+
+def test_soft_reach_leaves_reachable_goals_and_never_locks_the_knee() -> None:
+    pose = _pose()
+    hip, knee, ankle, _ = LEGS[0]
+    n = 60
+    rows = np.repeat(pose[None], n, axis=0)
+    # Goals from the ankle itself to far beyond the leg, straight down and behind.
+    away = ankle_dir = pose[ankle] - pose[hip]
+    ankle_dir = away / np.linalg.norm(away)
+    goals = pose[hip] + ankle_dir * np.linspace(np.linalg.norm(away), 1.2, n)[:, None]
+    goals[:, 2] -= np.linspace(0.0, 0.3, n)
+    out = soft_reach(rows[:, hip], rows[:, knee], rows[:, ankle], goals)
+    np.testing.assert_allclose(out[0], pose[ankle], atol=1e-9)  # the decoded ankle stays
+    length = BONE_LENGTHS[knee] + BONE_LENGTHS[ankle]
+    reach = np.linalg.norm(out - pose[hip], axis=-1)
+    assert reach.max() < length * (1 - 1e-3)  # never straight
+    assert np.all(np.diff(reach) >= -1e-12)  # farther goals, farther ankles
+    # Continuous: no step larger than the goals' own.
+    assert np.abs(np.diff(out, axis=0)).max() <= np.abs(np.diff(goals, axis=0)).max() + 1e-9
+
+
+def test_a_pin_the_body_leaves_behind_does_not_snap_the_knee() -> None:
+    """The body glides on 3 cm a frame over a planted foot for 12 frames, then the foot lets go:
+    the leg stretches towards the pin, softly, and bends back without a jolt of the knee."""
+    n = 40
+    joints = np.repeat(_pose()[None], n, axis=0)
+    joints[..., 2] += 0.03 * np.arange(n)[:, None]
+    contacts = np.zeros((n, 4))
+    contacts[5:17, :2] = 1.0  # the left foot is planted for 12 frames
+    out = FootPinner(1).apply(0, joints, contacts)
+    hip, knee, ankle, _ = LEGS[0]
+    stretch = np.linalg.norm(out[:, ankle] - out[:, hip], axis=-1) / (
+        BONE_LENGTHS[knee] + BONE_LENGTHS[ankle]
+    )
+    assert stretch.max() < 0.999
+    assert joint_acceleration(out)[:, knee].max() < 30.0  # m/s^2 (a locked knee snapping back: ~100)
+    np.testing.assert_allclose(out[17 + FOOT_BLEND :], joints[17 + FOOT_BLEND :], atol=1e-6)  # released
+    # Bones keep their lengths.
+    np.testing.assert_allclose(
+        bone_lengths(out)[:, [knee, ankle]], bone_lengths(joints)[:, [knee, ankle]], atol=1e-5
+    )
+
+
+def test_the_pinner_given_tokens_equals_the_whole_clip() -> None:
+    n = 40
+    joints = np.repeat(_pose()[None], n, axis=0)
+    joints[..., 2] += 0.03 * np.arange(n)[:, None]
+    contacts = np.zeros((n, 4))
+    contacts[5:17, :2] = contacts[20:33, 2:] = 1.0
+    whole = FootPinner(1).apply(0, joints, contacts)
+    pinner = FootPinner(1)
+    parts = np.concatenate([pinner.apply(0, joints[f : f + 4], contacts[f : f + 4]) for f in range(0, n, 4)])
+    np.testing.assert_allclose(parts, whole, atol=1e-6)
+
+
+def test_arms_keep_the_decoded_wrists_where_a_forearm_collapses() -> None:
+    pose = _pose()
+    n = 9
+    decoded = np.repeat(pose[None], n, axis=0)
+    # The decoder shrinks the left forearm to a third for a few frames while the hand stays put:
+    # the elbow moves towards the wrist and a little aside, so the short forearm turns.
+    shoulder, elbow, wrist = ARMS[0]
+    shrink = np.array([0, 0, 0.3, 0.6, 0.67, 0.6, 0.3, 0, 0])
+    decoded[:, elbow] += shrink[:, None] * (pose[wrist] - pose[elbow] + np.array([0.12, 0.0, 0.0]))
+    rebuilt = on_bone_lengths(decoded)
+    np.testing.assert_allclose(bone_lengths(rebuilt), np.broadcast_to(BONE_LENGTHS, (n, 22)), atol=1e-5)
+    # The wrist stays where it was decoded (relative to the shoulder); keeping bone directions
+    # swings it far out.
+    kept = np.linalg.norm(
+        (rebuilt[:, wrist] - rebuilt[:, shoulder]) - (decoded[:, wrist] - decoded[:, shoulder]), axis=-1
+    )
+    swung = with_bone_lengths(decoded)
+    moved = np.linalg.norm(
+        (swung[:, wrist] - swung[:, shoulder]) - (decoded[:, wrist] - decoded[:, shoulder]), axis=-1
+    )
+    assert kept.max() < 0.03 and moved.max() > 0.08  # (ARM_SCALE of a 0.5 m arm: 2.5 cm)
+    assert joint_acceleration(rebuilt)[:, wrist].max() < 0.3 * joint_acceleration(swung)[:, wrist].max()
+    # A pose already on the skeleton's bones keeps its wrists; its elbows move by millimetres at most
+    # (the bend bias, ARM_BEND_HINT, on arms as good as straight).
+    same = on_bone_lengths(pose[None])[0]
+    np.testing.assert_allclose(same[[20, 21]], pose[[20, 21]], atol=1e-5)
+    np.testing.assert_allclose(same, pose, atol=5e-3)
+
+
+def test_a_straight_but_short_decoded_arm_bends_its_elbow_one_way() -> None:
+    """The decoder holds an arm straight but 10 % short; its elbow, off the line by noise alone,
+    must not flip from side to side between frames (it swung 20 cm a frame in a stream)."""
+    pose = _pose()
+    n = 30
+    decoded = np.repeat(pose[None], n, axis=0)
+    shoulder, elbow, wrist = ARMS[1]
+    reach = 0.9 * (BONE_LENGTHS[elbow] + BONE_LENGTHS[wrist])
+    down = np.array([0.0, -1.0, 0.0])
+    decoded[:, wrist] = pose[shoulder] + reach * down
+    noise = np.random.default_rng(0).normal(0.0, 0.002, (n, 3))
+    decoded[:, elbow] = pose[shoulder] + 0.5 * reach * down + noise
+    rebuilt = on_bone_lengths(decoded)
+    side = rebuilt[:, elbow] - rebuilt[:, shoulder]
+    # It bends back (-z for this pose), every frame; noise still wobbles it a few cm, no flip.
+    assert np.all(side[:, 2] < -0.02)
+    assert np.linalg.norm(np.diff(rebuilt[:, elbow], axis=0), axis=-1).max() < 0.1

@@ -1,0 +1,199 @@
+"""The controller's rollout loop (PathController.run) against the frame-by-frame form it replaced:
+the same roots, states and gradients to the last bit, the vectorised waypoint queue against its
+loop, and the trace the stream records."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch
+
+from motion_env.models.controller import ControllerConfig, ControllerState, PathController
+from motion_env.models.waypoint_features import from_heading_frame_torch, next_queue, to_heading_frame_torch
+from motion_env.motion.skeleton import FPS
+
+TINY = ControllerConfig(text_dim=16, text_proj=8, hidden=32, mlp=32)
+
+
+def _tiny(seed: int = 0, scale: float = 0.5) -> PathController:
+    torch.manual_seed(seed)
+    model = PathController(TINY)
+    for p in model.out[-1].parameters():
+        torch.nn.init.normal_(p, std=scale)
+    return model.eval()
+
+
+# ---------------------------------------------------------------------------------- the reference
+# The per-frame step as it was before PathController.run: every feature, the queue loop and the
+# module calls made afresh each frame. The run loop must give the same numbers.
+
+
+def _reference_queue(model: PathController, state: ControllerState) -> torch.Tensor:
+    queue = state.queue.clone()
+    batch = torch.arange(queue.shape[0])
+    frame = state.frame.to(torch.float32)
+    for _ in range(state.waypoints.shape[1]):
+        wp = state.waypoints[batch, queue]
+        timed = ~torch.isnan(wp[:, 2])
+        passed_time = timed & (wp[:, 2].nan_to_num(0.0) <= frame)
+        near = ~timed & ((wp[:, :2] - state.pos.detach()).norm(dim=-1) < model.config.arrive_radius)
+        move = (passed_time | near) & (queue < state.count - 1)
+        if not move.any():
+            break
+        queue = queue + move.long()
+    return queue
+
+
+def _reference_step(model: PathController, state: ControllerState) -> ControllerState:
+    c = model.config
+    b = state.pos.shape[0]
+    batch = torch.arange(b)
+    slots = state.queue[:, None] + torch.arange(c.num_slots)[None]
+    slots = torch.minimum(slots, (state.count - 1).clamp(min=0)[:, None])
+    wp = state.waypoints[batch[:, None], slots]
+    offset = to_heading_frame_torch(wp[..., :2] - state.pos[:, None], state.theta[:, None])
+    dist = offset.norm(dim=-1)
+    timed = ~torch.isnan(wp[..., 2])
+    ttg = ((wp[..., 2].nan_to_num(0.0) - state.frame[:, None].float()) / FPS).clamp(0.0, c.max_time_to_go)
+    ttg = torch.where(timed, ttg, torch.zeros_like(ttg))
+    speed = torch.where(timed, dist / (ttg + 0.25), torch.zeros_like(dist)).clamp(max=10.0)
+    is_last = (slots == (state.count - 1)[:, None]).float()
+    valid = (state.count > 0)[:, None].expand(b, c.num_slots).float()
+    prev = torch.cat([state.pos[:, None], wp[:, :-1, :2]], dim=1)
+    seg = (wp[..., :2] - prev).norm(dim=-1)
+    feats = torch.stack(
+        [
+            offset[..., 0] / dist.clamp(min=1.0),
+            offset[..., 1] / dist.clamp(min=1.0),
+            torch.log1p(dist),
+            timed.float(),
+            ttg,
+            speed,
+            is_last,
+            valid,
+            torch.log1p(seg),
+        ],
+        dim=-1,
+    ) * valid[..., None]  # fmt: skip
+    final = (state.count > 0) & (state.queue == state.count - 1)
+    target = offset[:, 0]
+    x = torch.cat([model.text_proj(state.text), feats.reshape(b, -1), 0.5 * state.vel], dim=-1)
+    z = model.inp(x)
+    hidden = model.gru(z, state.hidden)
+    raw = model.out(torch.cat([hidden, z], dim=-1))
+    step_xz = raw[:, :2] * c.step_scale
+    turn = raw[:, 2] * c.turn_scale
+    dist = target.norm(dim=-1)
+    gate = torch.where(final, (dist / c.arrive_radius).clamp(max=1.0) ** 2, torch.ones_like(dist))
+    step_xz = gate[:, None] * step_xz + (1.0 - gate[:, None]) * c.seek_rate * target
+    turn = gate * turn
+    theta = state.theta + turn
+    pos = state.pos + from_heading_frame_torch(step_xz, state.theta + 0.5 * turn)
+    vel = torch.cat([step_xz, turn[:, None]], dim=-1) * FPS
+    new = replace(state, pos=pos, theta=theta, vel=vel, hidden=hidden, frame=state.frame + 1)
+    return replace(new, queue=_reference_queue(model, new))
+
+
+def _routes(rng: np.random.Generator, b: int) -> list[np.ndarray | None]:
+    """Every kind of route: none, untimed, timed, mixed, and one that starts on its first point."""
+    out: list[np.ndarray | None] = []
+    for i in range(b):
+        k = int(rng.integers(1, 6))
+        pts = np.cumsum(rng.normal(size=(k, 2)), 0).astype(np.float32)
+        times = np.cumsum(rng.integers(3, 25, size=k)).astype(np.float32)[:, None]
+        kind = i % 5
+        if kind == 0:
+            out.append(None)
+        elif kind == 1:
+            out.append(pts)
+        else:
+            wp = np.concatenate([pts * (0.1 if kind == 4 else 1.0), times], 1)
+            if kind == 3:
+                wp[rng.random(k) < 0.5, 2] = np.nan
+            out.append(wp)
+    return out
+
+
+@pytest.mark.parametrize("batch", [1, 3, 7])
+def test_run_equals_the_frame_by_frame_reference(batch: int) -> None:
+    model = _tiny(batch)
+    rng = np.random.default_rng(batch)
+    emb = torch.randn(batch, 16)
+    starts = rng.normal(size=(batch, 3)).astype(np.float32)
+    with torch.no_grad():
+        state = model.init_state(emb, _routes(rng, batch), starts, generator=torch.Generator().manual_seed(1))
+        roots, new = model(state, 90)
+        ref, frames = state, [state.root]
+        for _ in range(90):
+            ref = _reference_step(model, ref)
+            frames.append(ref.root)
+    assert torch.equal(roots, torch.stack(frames, dim=1))
+    for name in ("pos", "theta", "vel", "hidden", "frame", "queue"):
+        assert torch.equal(getattr(new, name), getattr(ref, name)), name
+
+
+def test_gradients_equal_the_frame_by_frame_reference() -> None:
+    model = _tiny(4).train()
+    rng = np.random.default_rng(4)
+    emb = torch.randn(6, 16)
+    state = model.init_state(emb, _routes(rng, 6), generator=torch.Generator().manual_seed(2))
+
+    def grads(roll) -> tuple[torch.Tensor, list[torch.Tensor]]:
+        model.zero_grad()
+        roots = roll()
+        (roots.square().sum() + roots[..., 2].sin().sum()).backward()
+        return roots.detach(), [p.grad.clone() for p in model.parameters()]
+
+    def reference() -> torch.Tensor:
+        s, frames = state, [state.root]
+        for _ in range(40):
+            s = _reference_step(model, s)
+            frames.append(s.root)
+        return torch.stack(frames, dim=1)
+
+    roots, g = grads(lambda: model(state, 40)[0])
+    ref_roots, ref_g = grads(reference)
+    assert torch.equal(roots, ref_roots)
+    assert all(torch.equal(a, b) for a, b in zip(g, ref_g, strict=True))
+
+
+def test_waypoint_queue_equals_its_loop() -> None:
+    model = _tiny()
+    rng = np.random.default_rng(0)
+    for trial in range(40):
+        b = int(rng.integers(1, 9))
+        state = model.init_state(
+            torch.zeros(b, 16), _routes(rng, b), rng.normal(size=(b, 3)).astype(np.float32)
+        )
+        k = state.waypoints.shape[1]
+        queue = torch.minimum(
+            torch.from_numpy(rng.integers(0, k, size=b)), (state.count - 1).clamp(min=0)
+        )  # any queue a rollout can hold
+        state = replace(
+            state,
+            queue=queue,
+            frame=torch.from_numpy(rng.integers(0, 80, size=b)),
+            pos=state.waypoints[torch.arange(b), queue, :2] + torch.randn(b, 2) * 0.3,
+        )
+        got = next_queue(state.waypoints, state.count, state.queue, state.pos, state.frame, 0.3)
+        assert torch.equal(got, _reference_queue(model, state)), trial
+
+
+def test_trace_holds_every_frame_of_stepping() -> None:
+    model = _tiny(2)
+    rng = np.random.default_rng(2)
+    emb = torch.randn(4, 16)
+    with torch.no_grad():
+        state = model.init_state(emb, _routes(rng, 4), generator=torch.Generator().manual_seed(3))
+        new, trace = model.run(state, 30, trace=True)
+        s = state
+        for n in range(30):
+            s = model.step(s)
+            assert torch.equal(trace.roots[:, n], s.root)
+            assert torch.equal(trace.vel[:, n], s.vel) and torch.equal(trace.hidden[:, n], s.hidden)
+            assert torch.equal(trace.queue[:, n], s.queue)
+        assert torch.equal(new.root, s.root) and torch.equal(new.frame, s.frame)
+        empty, nothing = model.run(state, 0)
+        assert nothing.roots.shape == (4, 0, 3) and torch.equal(empty.root, state.root)
