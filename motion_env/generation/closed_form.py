@@ -20,19 +20,20 @@ joint acceleration against the same clip's): a two-bone chain solved near full e
 folded flat moves its middle joint by far more than its end moves (a straight leg lowered 5 mm
 bends its knee 4 cm), so :func:`_two_bone` keeps the middle joint on the side it bent to,
 measured against the chain's own axis while the chain is open and as close as it can stay to
-where it was while it is folded, and reaches the last SOFT_LEG / SOFT_ARM metres beyond the
-chain's own length softly (the end stops a few millimetres short instead of snapping the chain
-straight); a head target is met by the pelvis height and a lean of the upper body about the
-pelvis (not by bending the nearly straight spine, whose middle swings with every centimetre the
-head's distance to the pelvis changes); the knees bend the way the body faces (not the toes,
-which turn as a foot lifts).
+where it was while it is folded, and reaches the last SOFT_LEG / SOFT_ARM metres before full
+extension softly (the end stops a few millimetres short instead of snapping the chain straight);
+a wrist correction fades as a turn about the shoulder and a change of reach (a straight cut from
+a folded arm's wrist passes by the shoulder, where the elbow swings); a head target is met by the
+pelvis height and a lean of the upper body about the pelvis (not by bending the nearly straight
+spine, whose middle swings with every centimetre the head's distance to the pelvis changes); the
+knees bend the way the body faces (not the toes, which turn as a foot lifts).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from motion_env.generation.feet import LEGS
+from motion_env.generation.feet import LEGS, soft_limit
 from motion_env.motion.skeleton import JOINT_NAMES, NUM_JOINTS
 
 __all__ = [
@@ -220,9 +221,7 @@ def _two_bone(
     if soft > 0:
         # Softened only beyond where the end was, so an unmoved chain stays exactly as it was.
         start = np.maximum(np.minimum(d0, hi - 1e-4), hi - soft)
-        room = np.maximum(hi - start, 1e-6)
-        excess = np.clip((d - start) / room, 0.0, 50.0)
-        d = np.where(d > start, start + room * (1.0 - np.exp(-excess)), d)
+        d = soft_limit(d, start, np.maximum(hi - start, 1e-6))
     d = np.clip(d, lo, hi)
     axis0 = chain / np.maximum(d0, 1e-9)[:, None]
     bend = (mid - root) - ((mid - root) * axis0).sum(-1, keepdims=True) * axis0

@@ -16,6 +16,7 @@ __all__ = [
     "LEGS",
     "FootPinner",
     "release_fade",
+    "soft_limit",
     "soft_reach",
     "two_bone_ik",
 ]
@@ -46,6 +47,13 @@ def release_fade(since: np.ndarray) -> np.ndarray:
     return 1.0 - s * s * (3.0 - 2.0 * s)
 
 
+def soft_limit(d: np.ndarray, start: np.ndarray | float, room: np.ndarray | float) -> np.ndarray:
+    """Distances `d` beyond `start` eased towards ``start + room`` on an exponential that meets it
+    only at infinity ("soft IK": a chain reaching for them never locks straight); those within stay."""
+    excess = np.clip((d - start) / np.maximum(room, 1e-9), 0.0, 50.0)
+    return np.where(d > start, start + room * (1.0 - np.exp(-excess)), d)
+
+
 def soft_reach(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, goal: np.ndarray) -> np.ndarray:
     """Ankle goals brought within the soft reach of their legs: (N, 3) hip, knee, ankle (the
     decoded leg) and goal -> (N, 3) goal.
@@ -62,8 +70,7 @@ def soft_reach(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, goal: np.nd
     start = reach - band
     v = goal - hip
     d = np.linalg.norm(v, axis=-1)
-    soft = np.where(d > start, start + band * (1.0 - np.exp(-(d - start) / np.maximum(band, 1e-9))), d)
-    return hip + v * (soft / np.maximum(d, 1e-9))[:, None]
+    return hip + v * (soft_limit(d, start, band) / np.maximum(d, 1e-9))[:, None]
 
 
 def two_bone_ik(

@@ -329,27 +329,19 @@ class Pipeline:
             state = replace(state, hidden=state.hidden + noise_std * noise)
         return state
 
-    def route_paces(self, text_emb: torch.Tensor) -> np.ndarray:
-        """(B,) the pace (m/s) the captions ask for on an untimed route (:attr:`pace`); NaN each
-        without a pace regressor."""
-        if self.pace is None:
-            return np.full(len(text_emb), np.nan)
-        return self.pace.pace(text_emb)
-
     def paced_routes(
         self,
         text_emb: torch.Tensor,
         routes: Sequence[np.ndarray | None],
         starts: np.ndarray,
-        first_frame: int = 0,
     ) -> list[np.ndarray | None]:
-        """Planned routes with their untimed waypoints timed at each caption's pace
-        (:func:`~motion_env.generation.route_planning.pace_route`): what the controller follows."""
+        """Planned routes with their untimed waypoints timed at each caption's pace (:attr:`pace`,
+        :func:`~motion_env.generation.route_planning.pace_route`): what the controller follows."""
         if self.pace is None or not any(needs_pace(r) for r in routes):
             return list(routes)
-        paces = self.route_paces(text_emb)
+        paces = self.pace.pace(text_emb)
         return [
-            pace_route(r, s[:2], first_frame, float(p))
+            pace_route(r, s[:2], 0, float(p))
             for r, s, p in zip(routes, np.asarray(starts), paces, strict=True)
         ]
 

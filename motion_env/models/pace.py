@@ -66,17 +66,9 @@ class PaceRegressor(nn.Module):
 
     @torch.no_grad()
     def pace(self, emb: torch.Tensor | np.ndarray) -> np.ndarray:
-        """(N, text_dim) embeddings -> (N,) float64 pace in m/s, as numpy (the same numbers as
-        :meth:`forward`, without its per-call torch overhead)."""
-        emb = emb.detach().cpu().numpy() if isinstance(emb, torch.Tensor) else np.asarray(emb)
-        if emb.ndim != 2 or emb.shape[1] != self.config.text_dim:
-            raise ValueError(
-                f"the pace regressor reads (N, {self.config.text_dim}) caption embeddings, "
-                f"got {tuple(emb.shape)}"
-            )
-        weight = self.linear.weight.detach().cpu().numpy()[0].astype(np.float64)
-        bias = float(self.linear.bias.detach().cpu()[0])
-        return np.clip(emb.astype(np.float64) @ weight + bias, 0.0, self.config.max_pace)
+        """(N, text_dim) embeddings (torch or numpy) -> (N,) float64 pace in m/s, as numpy."""
+        emb = torch.as_tensor(emb, device=self.linear.weight.device)
+        return self(emb).cpu().numpy().astype(np.float64)
 
     def set_weights(self, weight: np.ndarray, bias: float) -> None:
         """Load a fitted linear map: (text_dim,) weights and a bias."""
