@@ -8,7 +8,7 @@ decision until the pelvis is within arrive_radius of the goal. After training th
 fixed goal; the example writes that rollout as a video, a top-down plot and a .npz, and prints the
 evaluation success next to a random agent's.
 
-Needs the optional extra: pip install -c constraints.txt "motion-env[rl]"  (stable-baselines3)
+Needs the optional extra: pip install -c constraints.txt -e ".[rl]"  (stable-baselines3)
 
     python examples/goal_reach_her.py --out runs/her --total-timesteps 3000
     python examples/goal_reach_her.py --random-model --total-timesteps 60 --learning-starts 20 \\
@@ -24,6 +24,7 @@ import numpy as np
 
 import motion_env
 from motion_env.args import ExampleArgs, parse_dataclass, require
+from motion_env.evaluation.episode import run_episode
 
 
 @dataclass
@@ -56,16 +57,6 @@ def make_env(generator: object, args: Args, max_steps: int) -> gym.Env:
     )
 
 
-def rollout(env: gym.Env, act, goal: np.ndarray, text: str, seed: int) -> tuple[np.ndarray, bool]:
-    """One episode to a fixed goal; returns (joints (T, 22, 3), success)."""
-    obs, info = env.reset(seed=seed, options={"text": text, "goal": goal})
-    frames, terminated, truncated = [info["joints"][None]], False, False
-    while not (terminated or truncated):
-        obs, _, terminated, truncated, info = env.step(act(obs))
-        frames.append(info["step_joints"])
-    return np.concatenate(frames), bool(info["is_success"])
-
-
 def main(args: Args) -> dict:
     sb3 = require("stable_baselines3", "rl")  # the optional extra
     out, generator = args.setup()
@@ -89,26 +80,22 @@ def main(args: Args) -> dict:
     env.close()
 
     goal = np.array([args.goal_x, args.goal_z], np.float32)
+    episode = {"text": args.text, "goal": goal}
     eval_env = make_env(generator, args, args.eval_steps)
-    joints, success = rollout(
-        eval_env, lambda o: model.predict(o, deterministic=True)[0], goal, args.text, args.seed
-    )
-    eval_env.action_space.seed(args.seed)
-    _, random_success = rollout(
-        eval_env, lambda o: eval_env.action_space.sample(), goal, args.text, args.seed
-    )
+    sac = run_episode(eval_env, lambda o: model.predict(o, deterministic=True)[0], args.seed, episode)
+    random_agent = run_episode(eval_env, None, args.seed, episode)
     eval_env.close()
 
-    final = float(np.linalg.norm(joints[-1, 0, [0, 2]] - goal))
+    final = float(np.linalg.norm(sac.joints[-1, 0, [0, 2]] - goal))
     result = {
         "total_timesteps": args.total_timesteps,
-        "eval_success": success,
+        "eval_success": bool(sac.info["is_success"]),
         "eval_final_distance_m": final,
-        "random_agent_success": random_success,
-        "eval_frames": int(len(joints)),
+        "random_agent_success": bool(random_agent.info["is_success"]),
+        "eval_frames": int(len(sac.joints)),
     }
     motion = motion_env.Motion(
-        joints, text=args.text, waypoints=goal[None], meta={"example": "goal_reach_her"}
+        sac.joints, text=args.text, waypoints=goal[None], meta={"example": "goal_reach_her"}
     )
     args.write_outputs(motion, "goal_reach_her_eval", result, f"SAC + HER after {args.total_timesteps} steps")
     return result

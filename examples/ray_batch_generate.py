@@ -15,7 +15,8 @@ other machine (this package installed), `export RAY_AUTH_MODE=token RAY_AUTH_TOK
 ray start --address=HEAD:6379`; put --out on storage that every machine sees and run this with
 RAY_AUTH_MODE=token and `--ray-address auto`; the actors are then spread over the machines.
 
-Needs the optional extra, in a venv of its own: pip install -c constraints.txt "motion-env[ray]" pytest
+Needs the optional extra, in a venv of its own, from the repository root, as docs/scaling.md:
+pip install -c constraints.txt -e ".[ray]" pytest
 
     python examples/ray_batch_generate.py --out runs/ray_batch --num-clips 64
     python examples/ray_batch_generate.py --random-model --num-clips 6 --batch-size 2 \\

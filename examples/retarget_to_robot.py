@@ -5,7 +5,7 @@ row per frame) and a MuJoCo video of it.
 Each robot gets the clip scaled to its size, its feet on the floor and every joint inside its
 range (motion_env.retarget). The printed result says, per robot, how far the hands and feet ended
 from their targets and the checks of scripts/evaluate_retarget.py (joint ranges, floor, jumps).
-Needs the optional mink package: pip install "motion-env[robots]".
+Needs the optional mink package: pip install -c constraints.txt -e ".[robots]".
 
     python examples/retarget_to_robot.py --out runs/retarget
     python examples/retarget_to_robot.py --text "a person jogs and waves" --route "0,3;2,6"

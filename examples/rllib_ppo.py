@@ -17,8 +17,8 @@ other machine (this package installed), `export RAY_AUTH_MODE=token RAY_AUTH_TOK
 ray start --address=HEAD:6379`; then run this with RAY_AUTH_MODE=token and `--ray-address auto`;
 env runners are then placed across the machines.
 
-Needs the optional extra (a separate venv is best: Ray pins its own gymnasium, 1.2.2 for Ray 2.60):
-pip install -c constraints.txt "motion-env[ray]" pytest
+Needs the optional extra (a separate venv is best: Ray pins its own gymnasium, 1.2.2 for Ray 2.60),
+from the repository root, as docs/scaling.md: pip install -c constraints.txt -e ".[ray]" pytest
 
     python examples/rllib_ppo.py --out runs/rllib_ppo
     python examples/rllib_ppo.py --random-model --iterations 1 --num-envs-per-env-runner 2 \\
@@ -37,6 +37,7 @@ import numpy as np
 
 import motion_env
 from motion_env.args import ExampleArgs, parse_dataclass, parse_waypoints, require
+from motion_env.evaluation.episode import run_episode
 
 ENV_ID = "motion_env:motion_env/Waypoints-v0"  # "module:id": Gymnasium imports motion_env first
 
@@ -134,17 +135,6 @@ def policy(module: Any, observation_space: gym.Space, action_space: gym.Space):
     return act
 
 
-def rollout(env: gym.Env, act, route: np.ndarray, text: str, seed: int) -> tuple[np.ndarray, float, bool]:
-    """One episode on a fixed route; returns (joints (T, 22, 3), return, reached)."""
-    obs, info = env.reset(seed=seed, options={"text": text, "waypoints": route})
-    frames, total, terminated, truncated = [info["joints"][None]], 0.0, False, False
-    while not (terminated or truncated):
-        obs, reward, terminated, truncated, info = env.step(act(obs))
-        frames.append(info["step_joints"])  # every frame of the step, not only the last
-        total += float(reward)
-    return np.concatenate(frames), total, bool(terminated)
-
-
 def main(args: Args) -> dict:
     ray = require("ray", "ray")  # the optional extra
     require("ray.rllib", "ray")
@@ -184,22 +174,22 @@ def main(args: Args) -> dict:
     env = gym.make("motion_env/Waypoints-v0", generator=generator, max_episode_steps=args.eval_steps,
                    frames_per_step=args.frames_per_step)  # fmt: skip
     act = policy(load_module(checkpoint), env.observation_space, env.action_space)
-    joints, ppo_return, reached = rollout(env, act, route, args.text, args.seed)
-    env.action_space.seed(args.seed)
-    _, random_return, _ = rollout(env, lambda o: env.action_space.sample(), route, args.text, args.seed)
+    episode = {"text": args.text, "waypoints": route}
+    ppo = run_episode(env, act, args.seed, episode)
+    random_agent = run_episode(env, None, args.seed, episode)
     env.close()
 
     result = dict(
         history=history,
         train_seconds=history[-1]["seconds"] if history else 0.0,
         checkpoint=str(checkpoint),
-        eval_return=ppo_return,
-        random_agent_return=random_return,
-        eval_reached_last_waypoint=reached,
-        eval_frames=int(len(joints)),
+        eval_return=ppo.total_return,
+        random_agent_return=random_agent.total_return,
+        eval_reached_last_waypoint=ppo.terminated,
+        eval_frames=int(len(ppo.joints)),
         versions={"ray": ray.__version__, "gymnasium": gym.__version__},
     )
-    motion = motion_env.Motion(joints, text=args.text, waypoints=route, meta={"example": "rllib_ppo"})
+    motion = motion_env.Motion(ppo.joints, text=args.text, waypoints=route, meta={"example": "rllib_ppo"})
     title = f"RLlib PPO, {args.iterations} iterations: {args.text}"
     args.write_outputs(motion, "rllib_ppo_eval", result, title)
     return result

@@ -8,7 +8,7 @@ SB3's default hyperparameters unless told otherwise. After training the agent wa
 deterministically; the example writes that rollout as a video, a top-down plot and a .npz, the
 model as a .zip, and prints the evaluation return next to a random agent's.
 
-Needs the optional extra: pip install -c constraints.txt "motion-env[rl]"  (stable-baselines3)
+Needs the optional extra: pip install -c constraints.txt -e ".[rl]"  (stable-baselines3)
 
     python examples/sb3_ppo.py --out runs/ppo --total-timesteps 60000
     python examples/sb3_ppo.py --random-model --total-timesteps 32 --n-steps 16 --eval-steps 10 \\
@@ -24,6 +24,7 @@ import numpy as np
 
 import motion_env
 from motion_env.args import ExampleArgs, parse_dataclass, parse_waypoints, require
+from motion_env.evaluation.episode import run_episode
 
 
 @dataclass
@@ -45,17 +46,6 @@ def make_env(generator: object, args: Args, max_steps: int) -> gym.Env:
     """One Waypoints-v0 with the learning defaults, for the evaluation rollout."""
     return gym.make("motion_env/Waypoints-v0", generator=generator, max_episode_steps=max_steps,
                     frames_per_step=args.frames_per_step)  # fmt: skip
-
-
-def rollout(env: gym.Env, act, route: np.ndarray, text: str, seed: int) -> tuple[np.ndarray, float, bool]:
-    """One episode on a fixed route; returns (joints (T, 22, 3), return, reached)."""
-    obs, info = env.reset(seed=seed, options={"text": text, "waypoints": route})
-    frames, total, terminated, truncated = [info["joints"][None]], 0.0, False, False
-    while not (terminated or truncated):
-        obs, reward, terminated, truncated, info = env.step(act(obs))
-        frames.append(info["step_joints"])  # every frame of the step, not only the last
-        total += float(reward)
-    return np.concatenate(frames), total, bool(terminated)
 
 
 def main(args: Args) -> dict:
@@ -87,24 +77,20 @@ def main(args: Args) -> dict:
 
     # Evaluate on a fixed route: the trained agent, then a random one for comparison.
     route = np.array(parse_waypoints(args.eval_route, "--eval-route"), np.float32)[:, :2]
+    episode = {"text": args.text, "waypoints": route}
     eval_env = make_env(generator, args, args.eval_steps)
-    joints, ppo_return, reached = rollout(
-        eval_env, lambda o: model.predict(o, deterministic=True)[0], route, args.text, args.seed
-    )
-    eval_env.action_space.seed(args.seed)
-    _, random_return, _ = rollout(
-        eval_env, lambda o: eval_env.action_space.sample(), route, args.text, args.seed
-    )
+    ppo = run_episode(eval_env, lambda o: model.predict(o, deterministic=True)[0], args.seed, episode)
+    random_agent = run_episode(eval_env, None, args.seed, episode)
     eval_env.close()
 
     result = dict(
         total_timesteps=args.total_timesteps,
-        eval_return=ppo_return,
-        random_agent_return=random_return,
-        eval_reached_last_waypoint=reached,
-        eval_frames=int(len(joints)),
+        eval_return=ppo.total_return,
+        random_agent_return=random_agent.total_return,
+        eval_reached_last_waypoint=ppo.terminated,
+        eval_frames=int(len(ppo.joints)),
     )
-    motion = motion_env.Motion(joints, text=args.text, waypoints=route, meta={"example": "sb3_ppo"})
+    motion = motion_env.Motion(ppo.joints, text=args.text, waypoints=route, meta={"example": "sb3_ppo"})
     args.write_outputs(motion, "sb3_ppo_eval", result, f"PPO after {args.total_timesteps} steps: {args.text}")
     return result
 

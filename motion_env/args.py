@@ -8,7 +8,8 @@
   video size) and :meth:`ExampleArgs.setup`, which applies them.
 - :func:`parse_waypoints`: the ``"x,z[,t];..."`` text form of waypoints.
 - :func:`write_json`: results as a JSON file (parent folders created).
-- :func:`require`: import an optional dependency, or exit with the command that installs it.
+- :func:`require`: import an optional dependency, or exit with the command that installs it
+  (:func:`install_line`).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ __all__ = [
     "ExampleArgs",
     "add_dataclass_arguments",
     "field_comments",
+    "install_line",
     "parse_dataclass",
     "parse_waypoints",
     "require",
@@ -136,6 +138,12 @@ def write_json(path: str | Path, data: Any) -> Path:
     return path
 
 
+def install_line(extra: str) -> str:
+    """The command that installs the optional `extra` (``"robots"``, ``"rl"``, ...), run from the
+    repository's root as the README's install is: the package is not on PyPI."""
+    return f'pip install -c constraints.txt -e ".[{extra}]"'
+
+
 def require(module: str, extra: str) -> Any:
     """Import an optional dependency; when it is missing, exit with the command that installs it."""
     import importlib
@@ -144,8 +152,7 @@ def require(module: str, extra: str) -> Any:
         return importlib.import_module(module)
     except ImportError:
         raise SystemExit(
-            f"{module} is not installed; install the optional extra: "
-            f'pip install -c constraints.txt "motion-env[{extra}]"'
+            f"{module} is not installed; install the optional extra: {install_line(extra)}"
         ) from None
 
 

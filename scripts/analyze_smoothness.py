@@ -352,9 +352,10 @@ def stage_pops(args: Args) -> dict[str, Any]:
         for row in clips:
             print(f"{row['take'][:39]:<40}" + "".join(_stage_cell(row[n]) for n in STAGE_NAMES))
         pops = {n: sum(r[n]["pops"] for r in clips) for n in STAGE_NAMES}
-        skate = {n: np.mean([r[n]["skating"] for r in clips]) / real_skating for n in STAGE_NAMES[1:]}
         print("pops " + ", ".join(f"{n} {v}/{len(clips)}" for n, v in pops.items()))
-        print("skating / real " + ", ".join(f"{n} {v:.2f}" for n, v in skate.items()))
+        if real_skating > 0:  # takes in place (raised hands, waves) have no skating to compare
+            skate = {n: np.mean([r[n]["skating"] for r in clips]) / real_skating for n in STAGE_NAMES[1:]}
+            print("skating / real " + ", ".join(f"{n} {v:.2f}" for n, v in skate.items()))
         slides = out[action]["planted_slide_cm"].items()
         print("planted feet slide (cm/frame) " + ", ".join(f"{n} {v:.2f}" for n, v in slides))
     return out

@@ -30,8 +30,8 @@ REQUESTS = [
 ]
 
 
-def outputs() -> dict[str, np.ndarray]:
-    gen = motion_env.MotionGenerator.from_pretrained()
+def _clips(gen: motion_env.MotionGenerator) -> dict[str, np.ndarray]:
+    """Whole clips: single requests, a batch and the root paths."""
     out: dict[str, np.ndarray] = {}
     for n, (text, wp, frames, seed) in enumerate(REQUESTS):
         out[f"generate_{n}"] = gen.generate(text, waypoints=wp, num_frames=frames, seed=seed).joints
@@ -39,9 +39,13 @@ def outputs() -> dict[str, np.ndarray]:
     for n, m in enumerate(batch):
         out[f"batch_{n}"] = m.joints
     out["root_paths"] = gen.root_paths(["a person walks"], ROUTE, num_frames=100, seed=3, snap=False)
+    return out
 
-    # Controlled clips: joint targets (a wrist and the pelvis) and objectives, and a batch where
-    # one row has no control.
+
+def _controlled(gen: motion_env.MotionGenerator) -> dict[str, np.ndarray]:
+    """Controlled clips: joint targets (a wrist and the pelvis) and objectives, and a batch where
+    one row has no control."""
+    out: dict[str, np.ndarray] = {}
     targets = np.full((80, 22, 3), np.nan, np.float32)
     targets[40, 21] = [0.3, 1.6, 1.2]
     targets[60, 0] = [0.5, 0.9, 2.0]
@@ -60,7 +64,11 @@ def outputs() -> dict[str, np.ndarray]:
     )
     for n, m in enumerate(mixed):
         out[f"mixed_{n}"] = m.joints
+    return out
 
+
+def _stream(gen: motion_env.MotionGenerator) -> np.ndarray:
+    """The stream with a caption, a route, joint targets and objectives changed mid-rollout."""
     stream = gen.stream(["a person walks", "a person jogs"], waypoints=[ROUTE, None], seed=5)
     frames = []
     for t in range(90):
@@ -78,8 +86,12 @@ def outputs() -> dict[str, np.ndarray]:
                 [motion_env.objectives.HeightLimit(joint="head", max_height=1.5, frames=(40, 60))], index=1
             )
         frames.append(stream.step())
-    out["stream"] = np.stack(frames)
+    return np.stack(frames)
 
+
+def _envs(gen: motion_env.MotionGenerator) -> dict[str, np.ndarray]:
+    """Waypoints-v0 stepped with fixed actions, then the native vector env, then a learner's."""
+    out: dict[str, np.ndarray] = {}
     env = gym.make("motion_env/Waypoints-v0", generator=gen, frames_per_step=2, action_mode="absolute")
     obs, info = env.reset(seed=0, options={"text": "a person jogs", "waypoints": [[0, 3], [3, 6]]})
     joints = []
@@ -116,6 +128,12 @@ def outputs() -> dict[str, np.ndarray]:
         vj.append(info["step_joints"])
     out["learner_env"] = np.stack(vj)
     return out
+
+
+def outputs() -> dict[str, np.ndarray]:
+    """Every recorded output of the shipped model, by name."""
+    gen = motion_env.MotionGenerator.from_pretrained()
+    return {**_clips(gen), **_controlled(gen), "stream": _stream(gen), **_envs(gen)}
 
 
 def main() -> int:

@@ -12,7 +12,12 @@ and the env steps. The script checks, and prints as JSON:
   mjlab's conventions (largest absolute difference, rad, m, rad/s, m/s);
 - the env stepping --steps times with zero actions (the robot holds its default pose, so it drifts
   from the clip and the episode may end: what a tracker learns to avoid), the terminations seen and
-  the tracking errors mjlab reports.
+  the tracking errors mjlab reports;
+- with --against, the file against what mjlab's own converter wrote for the same clip (its
+  ``csv_to_npz`` on our ``lafan_csv`` export at the same rate, or wbc-mjlab's ``data_to_npz`` on our
+  ``gmr`` pickle): the largest difference per array over the frames both have. The converters
+  leave out the clip's last frame and take one-sided differences on their own last one, so the
+  velocities are compared on every common frame but that one.
 
 Runs in a venv with mjlab (it brings its own mujoco; see docs/robots.md), on warp's CPU device:
 
@@ -22,6 +27,11 @@ Runs in a venv with mjlab (it brings its own mujoco; see docs/robots.md), on war
     # the mjlab venv
     . .venv-mjlab/bin/activate
     WANDB_MODE=disabled python scripts/check_trackers.py walk_g1.npz --json runs/check_trackers.json
+    # and against mjlab's own converter (it writes /tmp/motion.npz)
+    # (walk_g1_50.csv: motion-env retarget ... --format lafan_csv --fps 50, in the main venv)
+    WANDB_MODE=disabled python -m mjlab.scripts.csv_to_npz --input-file walk_g1_50.csv --output-name walk_g1 \
+        --input-fps 50 --output-fps 50 --device cpu
+    python scripts/check_trackers.py walk_g1.npz --against /tmp/motion.npz
 """
 
 from __future__ import annotations
@@ -44,6 +54,8 @@ def _args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--num-envs", type=int, default=2, help="parallel envs (default 2)")
     p.add_argument("--device", default="cpu", help="torch and warp device (default cpu)")
     p.add_argument("--json", type=Path, default=None, help="also write the report here")
+    help_against = "the same clip as mjlab's csv_to_npz (or wbc-mjlab's data_to_npz) wrote it (.npz)"
+    p.add_argument("--against", type=Path, default=None, help=help_against)
     return p.parse_args(argv)
 
 
@@ -79,6 +91,32 @@ def _reset_errors(env: Any, robot: Any, motion: Any, data: dict) -> dict:
     }
 
 
+def _against(data: dict, path: Path) -> dict:
+    """Largest differences between the file and a converter's npz of the same clip (quaternions up
+    to sign), or SystemExit naming the file and the array that does not fit."""
+    import numpy as np
+
+    if not path.is_file():
+        raise SystemExit(f"no converter output at {path}")
+    keys = ("joint_pos", "body_pos_w", "body_quat_w", "joint_vel", "body_lin_vel_w", "body_ang_vel_w")
+    with np.load(path, allow_pickle=False) as npz:  # names (object arrays) are not read
+        theirs = {key: npz[key].astype(np.float64) for key in keys if key in npz.files}
+    n = min(len(theirs.get("joint_pos", ())), len(data["joint_pos"]))
+    report: dict = {"file": str(path), "frames_compared": n}
+    for key in keys:
+        if key not in theirs:
+            raise SystemExit(f"{path} has no {key}: not a converter's tracking npz")
+        if theirs[key].shape[1:] != data[key].shape[1:] or n < 3:
+            raise SystemExit(f"{path}: {key} is {theirs[key].shape}; the clip's is {data[key].shape}")
+        ours, got = data[key][:n].astype(np.float64), theirs[key][:n]
+        diff = np.abs(ours - got)
+        if key == "body_quat_w":  # q and -q are the same rotation
+            diff = np.minimum(diff.max(-1), np.abs(ours + got).max(-1))
+        # velocities: the converter's last frame is a one-sided difference, ours a central one
+        report[key] = float(diff[: n - 1].max() if "_vel" in key else diff.max())
+    return report
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _args(argv)
     if not args.motion.is_file():
@@ -92,6 +130,7 @@ def main(argv: list[str] | None = None) -> int:
 
     with np.load(args.motion) as npz:
         data = {key: npz[key] for key in npz.files}
+    against = _against(data, args.against) if args.against is not None else None
     # play=True: the episode starts at the clip's first frame, without randomised root offsets;
     # no joint noise either, so that the reset robot is exactly the clip's frame.
     cfg = unitree_g1_flat_tracking_env_cfg(play=True)
@@ -120,6 +159,8 @@ def main(argv: list[str] | None = None) -> int:
     report["terminations"] = terminated
     report["tracking_error_mean"] = {k: round(float(np.mean([e[k] for e in errors])), 4) for k in errors[0]}
     env.close()
+    if against is not None:
+        report["against_converter"] = against
     text = json.dumps(report, indent=2)
     print(text)
     if args.json is not None:

@@ -13,6 +13,20 @@ thread). Prints a table per robot and writes every clip's numbers to --json.
 
     python scripts/evaluate_retarget.py --json runs/retarget_eval.json
     python scripts/evaluate_retarget.py --data /path/to/shared/data --no-generated
+    python scripts/evaluate_retarget.py --bench --no-generated --takes-per-action 2
+
+--hands: only whether the robot's hands follow raised human hands: on the raise and wave takes
+(and the generated raise, wave and a walking turn with raised hands), the correlation of each
+raised hand's height (one whose height varies by RAISED_STD or more) with the robot wrist's, per
+robot; with --guess MJCF[,MJCF], also with the mapping guessed from those files (measured at the
+named robot's wrist frames) and the warnings the guess gave:
+
+    python scripts/evaluate_retarget.py --hands --robots booster_t1 \
+        --guess motion_env/retarget/robots/booster_t1/t1.xml
+
+--bench: only the speed, per robot: every clip retargeted once (after a warm-up) between two
+runs of the bench's calibration workload (:func:`motion_env.evaluation.bench.calibrated`), in
+wall and CPU time, each also as its quiet-machine equivalent.
 """
 
 from __future__ import annotations
@@ -53,6 +67,8 @@ GENERATED = {
     "wave": ("a person stands and waves with the right hand", None),
     "raise": ("a person raises both hands above the head", None),
 }
+RAISED_STD = 0.05  # m: a human hand whose height varies this much is raised (--hands)
+HANDS_CAPTION = "a person walks forward and turns left while raising both hands above the head"
 COLUMNS = (
     ("range_violations", "violations", "{:d}"),
     ("penetration_cm", "penetr. cm", "{:.2f}"),
@@ -134,6 +150,9 @@ class Args:
     seed: int = 0  # seed of the generated clips
     json: str = ""  # write every clip's numbers here (empty: do not)
     replay: bool = False  # also judge each robot clip with the robot replay (replay.evaluate_robot)
+    bench: bool = False  # only time the retargeting beside the calibration workload
+    hands: bool = False  # only the raised-hand check (see the docstring)
+    guess: str = ""  # --hands: MJCF files (comma-separated) to retarget onto with a guessed mapping
 
 
 def judge(result: Any, robot: str) -> dict[str, Any]:
@@ -159,6 +178,93 @@ def replay_summary(robot: str, rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
+def time_retarget(clips: list[motion_env.Motion], robot: str, fps: float) -> dict[str, Any]:
+    """Human frames retargeted per second over `clips`, wall and CPU time (the bench's shape)."""
+    frames = sum(c.num_frames for c in clips)
+    wall, cpu = time.perf_counter(), time.process_time()
+    for motion in clips:
+        motion_env.retarget(motion, robot=robot, fps=fps)
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    return {"frames": frames, "frames_per_s": frames / wall, "cpu": {"frames_per_s": frames / cpu}}
+
+
+def bench(robots: list[str], clips: list[motion_env.Motion], fps: float) -> dict[str, Any]:
+    """Per robot, :func:`time_retarget` beside the calibration workload; prints a line each."""
+    from motion_env.evaluation.bench import calibrated
+
+    out = {}
+    for robot in robots:
+        motion_env.retarget(clips[0], robot=robot, fps=fps)  # warm-up: load the model once
+        out[robot] = result = calibrated(time_retarget, clips, robot, fps)
+        print(
+            f"{robot}: {result['frames']} human frames, {result['frames_per_s']:.0f} human frames/s "
+            f"(CPU time {result['cpu']['frames_per_s']:.0f}), calibration {result['calibration_ms']:.0f} ms "
+            f"-> quiet-machine equivalent {result['quiet']['frames_per_s']:.0f} "
+            f"(from CPU time {result['quiet_cpu']['frames_per_s']:.0f})"
+        )
+    return out
+
+
+def raised_hand_corr(
+    qpos: np.ndarray, fps: float, motion: motion_env.Motion, model: Any, frames: list[tuple[str, str]]
+) -> list[float]:
+    """Per raised human hand of `motion`, the correlation of its height with the height of the
+    robot frame (type, name) in `frames` (left, right) over `qpos` (T, nq) at `fps` on `model`."""
+    import mujoco
+
+    from motion_env.motion.kinematics import resample
+    from motion_env.motion.skeleton import JOINT_INDEX
+
+    human = resample(motion.joints.astype(np.float64), motion.fps, fps)[: len(qpos)]
+    kinds = {"site": mujoco.mjtObj.mjOBJ_SITE, "body": mujoco.mjtObj.mjOBJ_BODY}
+    ids = [mujoco.mj_name2id(model, kinds[kind], name) for kind, name in frames]
+    data, robot = mujoco.MjData(model), np.zeros((len(qpos), 2))
+    for t, q in enumerate(qpos):
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        for side, ((kind, _), i) in enumerate(zip(frames, ids)):
+            robot[t, side] = (data.site_xpos if kind == "site" else data.xpos)[i, 2]
+    out = []
+    for side, joint in enumerate(("left_wrist", "right_wrist")):
+        height = human[:, JOINT_INDEX[joint], 1]
+        if height.std() >= RAISED_STD:
+            moving = robot[:, side].std() > 1e-9
+            out.append(float(np.corrcoef(robot[:, side], height)[0, 1]) if moving else float("nan"))
+    return out
+
+
+def hands(robots: list[str], clips: list[tuple[str, str, str, Any]], guess: list[str], fps: float) -> dict:
+    """The --hands check: per robot (and guessed model), each clip's raised-hand correlations."""
+    import warnings
+
+    from motion_env.retarget import load_robot
+
+    out: dict = {}
+    for robot in robots:
+        bot = load_robot(robot)
+        wrists = [next(t for t in bot.tasks if t.human == f"{s}_wrist") for s in ("left", "right")]
+        frames = [(t.type, t.frame) for t in wrists]
+        for target in [robot, *guess]:
+            model = bot.model if target == robot else None
+            rows, said = [], set()
+            for _, group, name, motion in clips:
+                with warnings.catch_warnings(record=True) as seen:
+                    warnings.simplefilter("always")
+                    result = motion_env.retarget(motion, robot=target, fps=fps)
+                said |= {str(w.message) for w in seen}
+                model = model or load_robot(target).model
+                r = raised_hand_corr(result.qpos, fps, motion, model, frames)
+                rows.append({"clip": name, "group": group, "r": r})
+                print(f"{robot:11s} {Path(target).name:11s} {group:5s} r {np.round(r, 3)}  {name}")
+            every = [x for row in rows for x in row["r"]]
+            print(f"{robot} ({target}): {len(every)} raised hands, r min {np.nanmin(every):.3f}, "
+                  f"mean {np.nanmean(every):.3f}")  # fmt: skip
+            for message in sorted(said):
+                print(f"  warned: {message}")
+            out[f"{robot}:{target}"] = {"clips": rows, "warnings": sorted(said)}
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_dataclass(Args, argv, description=__doc__)
 
@@ -170,11 +276,28 @@ def main(argv: list[str] | None = None) -> int:
 
         torch.set_num_threads(1)
         gen = motion_env.MotionGenerator.from_pretrained()
-        for group, (text, route) in GENERATED.items():
+        captions = (
+            dict(GENERATED, hands=(HANDS_CAPTION, [[0.0, 2.5], [-2.0, 3.5]])) if args.hands else GENERATED
+        )
+        for group, (text, route) in captions.items():
             motion = gen.generate(text, route, num_frames=args.frames, seed=args.seed)
             clips.append(("generated", group, text, motion))
 
     robots = [r.strip() for r in args.robots.split(",") if r.strip()]
+    command = ["python", "scripts/evaluate_retarget.py", *(sys.argv[1:] if argv is None else argv)]
+    if args.hands:
+        chosen = [c for c in clips if c[1] in ("raise", "wave", "hands")]
+        guessed = [g.strip() for g in args.guess.split(",") if g.strip()]
+        checked = hands(robots, chosen, guessed, args.fps)
+        if args.json:
+            write_json(args.json, {"command": " ".join(command), "fps": args.fps, "hands": checked})
+        return 0
+    if args.bench:
+        speeds = bench(robots, [c[3] for c in clips], args.fps)
+        if args.json:
+            info = {"command": " ".join(command), "fps": args.fps, "threads": 1}
+            write_json(args.json, {**info, "bench": speeds})
+        return 0
     rows = []
     for robot in robots:
         motion_env.retarget(clips[0][3], robot=robot, fps=args.fps)  # warm-up: load the model once
@@ -192,9 +315,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"{motion.num_frames / seconds:5.0f} human fps  {name}")  # fmt: skip
 
     results: dict = {
-        "command": " ".join(
-            ["python", "scripts/evaluate_retarget.py", *(sys.argv[1:] if argv is None else argv)]
-        ),
+        "command": " ".join(command),
         "fps": args.fps,
         "threads": 1,
         "summary": {},

@@ -119,6 +119,7 @@ def main() -> None:
     p.add_argument("--beams", type=int, default=8, help="walks under the beam (default 8; 0: none)")
     p.add_argument("--weights", default=None, help="generator weights (default: the shipped model)")
     p.add_argument("--set", action="append", default=[], help="RefineConfig field=value (repeatable)")
+    p.add_argument("--per-clip", action="store_true", help="also print each controlled clip's ratio")
     args = p.parse_args()
     torch.set_num_threads(1)
     gen = motion_env.MotionGenerator.from_pretrained(args.weights)
@@ -147,6 +148,12 @@ def main() -> None:
             errors.append(float(np.linalg.norm(made.joints[known] - targets[known], axis=-1).mean()))
             ratios.append(largest_acceleration(made.joints) / largest_acceleration(free))
             reach.append(within_reach(targets, path))
+            if args.per_clip:
+                print(
+                    f"  {take.name[:44]:<44} {'+'.join(names) if len(names) < 6 else 'all six':<14} "
+                    f"x{count:<5} ratio {ratios[-1]:.2f} ({'within reach' if reach[-1] else 'steered'}), "
+                    f"error {errors[-1] * 100:.2f} cm"
+                )
     r, near = np.array(ratios), np.array(reach)
     speed = f"{np.mean(seconds):.2f} s per controlled clip"
     if quiet:

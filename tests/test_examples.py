@@ -96,7 +96,7 @@ def test_rl_examples(tmp_path, name):
 # The two Ray examples (the optional "ray" extra, best in its own venv: Ray pins gymnasium). They run
 # as scripts, as documented: Ray pickles the examples' callbacks and classes by value only from
 # __main__, and each run starts and stops its own local Ray instance.
-NO_RAY = "the optional 'ray' extra is not installed (pip install -c constraints.txt \"motion-env[ray]\")"
+NO_RAY = "the optional 'ray' extra is not installed (pip install -c constraints.txt -e \".[ray]\")"
 
 
 def _run_script(name: str, out: Path, *flags: str) -> None:
@@ -156,7 +156,7 @@ def test_ray_examples_say_how_to_install_ray_when_it_is_missing(tmp_path, name):
     if importlib.util.find_spec("ray") is not None:
         pytest.skip("ray is installed: nothing is missing")
     module = _load(name)
-    with pytest.raises(SystemExit, match=r"motion-env\[ray\]"):
+    with pytest.raises(SystemExit, match=r'-e "\.\[ray\]"'):
         module.main(parse_dataclass(module.Args, ["--random-model", "--out", str(tmp_path)]))
 
 

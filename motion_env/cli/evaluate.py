@@ -116,6 +116,17 @@ def _echo(args: argparse.Namespace, command: str, flags: tuple[str, ...]) -> str
     return " ".join([f"motion-env eval {command}", *given])
 
 
+def _write_result(args: argparse.Namespace, result: Any, flags: tuple[str, ...]) -> None:
+    """``--json``: the command line that reproduces the results, the results, and the caption
+    reader the generator was loaded with (where the command has the option)."""
+    from motion_env.args import write_json
+
+    data = {"command": _echo(args, args.eval_command, flags), **result.to_dict()}
+    if hasattr(args, "caption_reader"):
+        data["caption_reader"] = args.caption_reader or "default"
+    write_json(args.json, data)
+
+
 def _prepare(args: argparse.Namespace) -> None:
     """The checks every eval command makes before anything heavy loads, then the threads."""
     if args.json:
@@ -137,7 +148,6 @@ def run_eval_control(args: argparse.Namespace) -> int:
     import dataclasses
 
     _prepare(args)
-    from motion_env.args import write_json
     from motion_env.evaluation.control import CONTROL_HEAD, ControlSettings, run_control
 
     settings = ControlSettings(args.data, args.split, args.max_clips, args.objective_repeats, args.seed)
@@ -150,14 +160,13 @@ def run_eval_control(args: argparse.Namespace) -> int:
     print(result.format())
     if args.json:
         flags = ("data", "split", "max_clips", "objective_repeats", "space", "steps", "seed", "model")
-        write_json(args.json, result.to_dict(_echo(args, "control", flags)))
+        _write_result(args, result, flags)
     return 0
 
 
 def run_eval_captions(args: argparse.Namespace) -> int:
     _check_dataset(args)
     _prepare(args)
-    from motion_env.args import write_json
     from motion_env.evaluation.recognition import RecognitionSettings, run_recognition
 
     settings = RecognitionSettings(args.data, args.split, args.seeds, args.seed, args.classifier)
@@ -166,15 +175,13 @@ def run_eval_captions(args: argparse.Namespace) -> int:
     print()
     print(result.format())
     if args.json:
-        command = _echo(args, "captions", ("data", "split", "seeds", "seed", "model", "classifier"))
-        write_json(args.json, result.to_dict(command, caption_reader=args.caption_reader or "default"))
+        _write_result(args, result, ("data", "split", "seeds", "seed", "model", "classifier"))
     return 0
 
 
 def run_eval_natural(args: argparse.Namespace) -> int:
     _check_dataset(args)
     _prepare(args)
-    from motion_env.args import write_json
     from motion_env.evaluation.naturalness import NaturalnessSettings, evaluate_naturalness
 
     settings = NaturalnessSettings(
@@ -184,8 +191,5 @@ def run_eval_natural(args: argparse.Namespace) -> int:
     result = evaluate_naturalness(gen, settings)
     print(result.format())
     if args.json:
-        flags = ("data", "split", "per_action", "seed", "stage", "model", "classifier")
-        data = {"command": _echo(args, "natural", flags), **result.to_dict()}
-        data["caption_reader"] = args.caption_reader or "default"
-        write_json(args.json, data)
+        _write_result(args, result, ("data", "split", "per_action", "seed", "stage", "model", "classifier"))
     return 0

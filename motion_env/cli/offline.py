@@ -112,6 +112,12 @@ _TRAINERS = {
         "ControllerTrainConfig",
         "the path controller (needs no other model)",
     ),
+    "lookahead": (
+        "motion_env.training.lookahead",
+        "LookaheadTrainConfig",
+        "the stream's look-ahead head, distilled from a weights folder's controller (then "
+        "training.lookahead.export_lookahead into that folder as lookahead.pt)",
+    ),
     "caption-adapter": (
         "motion_env.training.caption_adapter",
         "CaptionAdapterTrainConfig",
@@ -215,6 +221,10 @@ def run_train(args: argparse.Namespace) -> int:
         from motion_env.training.controller import train_controller
 
         metrics = train_controller(args.data, args.out, config)
+    elif args.model == "lookahead":
+        from motion_env.training.lookahead import train_lookahead
+
+        metrics = train_lookahead(args.data, args.out, config)
     elif args.model == "pace":
         from motion_env.training.pace import train_pace
 

@@ -5,7 +5,7 @@ the header; .npz: root_pos, root_rot x, y, z, w, dof_pos, fps, joint_names) or t
 trackers read (--format mjlab: mjlab's tracking npz at 50 fps; gmr: GMR's .pkl; lafan_csv: no
 header, quaternion x, y, z, w, 30 fps, as mjlab's csv_to_npz and Unitree's LAFAN1 release read).
 --show-mapping prints which robot frame follows which human joint. Needs the optional mink package
-(pip install 'motion-env[robots]').
+(pip install -c constraints.txt -e ".[robots]").
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """`motion-env studio`: a local web page where you type a caption, click waypoints on the floor and
 watch the character (or a small crowd) stream in 3-D, 20 frames a second. Needs the optional
-viser package (pip install "motion-env[studio]"). Stop it with Ctrl-C.
+viser package (pip install -c constraints.txt -e ".[studio]"). Stop it with Ctrl-C.
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ import socket
 import sys
 import threading
 
+from motion_env.args import install_line
 from motion_env.cli.common import CommandError, add_threads, check_model_choice, load_generator
 
 __all__ = ["add_studio", "run_studio"]
@@ -101,9 +102,7 @@ def _interrupt(signum: int, frame: object) -> None:
 
 def run_studio(args: argparse.Namespace) -> int:
     if importlib.util.find_spec("viser") is None:
-        raise CommandError(
-            'the studio needs the viser package: pip install -c constraints.txt "motion-env[studio]"'
-        )
+        raise CommandError(f"the studio needs the viser package: {install_line('studio')}")
     check_model_choice(args)
     captions = _captions(args)
     _check_port(args.host, args.port)

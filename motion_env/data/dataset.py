@@ -17,6 +17,7 @@ builds one from BVH folders (``motion-env data build``).
 
 from __future__ import annotations
 
+import csv
 import hashlib
 from collections import defaultdict
 from collections.abc import Iterable, Sequence
@@ -213,3 +214,14 @@ def load_stats(root: str | Path) -> tuple[np.ndarray, np.ndarray]:
     if not (std > 0).all():
         raise ValueError(f"{paths[1]}: {int((std <= 0).sum())} non-positive standard deviations")
     return mean, std
+
+
+def read_index(root: str | Path) -> dict[str, dict[str, str]]:
+    """Take name -> its row of ``index.csv`` (split, source, take, label, style, mirrored, frames,
+    file: what ``motion-env data build`` writes); empty for a dataset without one (a HumanML3D
+    folder)."""
+    path = Path(root).expanduser() / "index.csv"
+    if not path.is_file():
+        return {}
+    with path.open(newline="", encoding="utf-8") as f:
+        return {row["name"]: row for row in csv.DictReader(f)}

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from motion_env.data.captions.bandai import BANDAI_CONTENTS, BANDAI_STYLES
+from motion_env.data.captions.bandai import BANDAI_CONTENTS, BANDAI_STYLES, canonical_style
 from motion_env.data.captions.grammar import article, inflect, third_person
 from motion_env.data.dataset import read_captions
 
@@ -50,11 +50,6 @@ def style_examples(style: str) -> list[str]:
     out += [f"a person walks {phrase}" for phrase in sty.phrases]
     out += [f"{subject} walks" for subject in sty.subjects]
     return list(dict.fromkeys(out))
-
-
-def _style_name(style: str) -> str:
-    """The first label of the style table that names the same style ("old" -> "elderly")."""
-    return next(label for label, sty in BANDAI_STYLES.items() if sty is BANDAI_STYLES[style])
 
 
 def build_vocabulary(dataset: str | Path) -> dict[str, Any]:
@@ -87,7 +82,7 @@ def build_vocabulary(dataset: str | Path) -> dict[str, Any]:
     aliases: dict[str, set[str]] = {}
     for r in rows:
         if r["style"] in BANDAI_STYLES:
-            name = _style_name(r["style"])
+            name = canonical_style(r["style"])
             style_clips[name] += 1
             if r["style"] != name:
                 aliases.setdefault(name, set()).add(r["style"])

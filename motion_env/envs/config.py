@@ -25,6 +25,7 @@ DEFAULT_TEXT_POOL: tuple[str, ...] = (
 
 ACTION_MODES = ("normalized", "absolute", "relative")
 INVALID_ACTION_MODES = ("raise", "hold")
+LOOKAHEAD_MODES = ("auto", "head", "exact")
 # Waypoints after the route target that the observation shows ("route_ahead").
 ROUTE_AHEAD = 3
 # Half-widths of the observation Boxes that are not bounded by nature (metres, m/s and rad/s, or
@@ -61,6 +62,7 @@ class EnvConfig(CheckedConfig):
     follow_action: bool = True
     invalid_action: Annotated[str, INVALID_ACTION_MODES] = "raise"
     random_start: bool = False
+    lookahead: Annotated[str, LOOKAHEAD_MODES] = "auto"
     route_length: tuple[int, int] = (2, 4)
     trail_length: int = 600
 

@@ -115,6 +115,8 @@ class CharacterBatch:
             starts=np.asarray(starts, np.float32),
             seed=seed,
         )
+        if self.config.lookahead != "auto":
+            self.stream.lookahead = self.config.lookahead
         self.caption = self.stream.caption_features()
         self.begin_step()
         self.emit_frame()

@@ -152,6 +152,7 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     | ``render_size`` | tuple[int, int] | ``(480, 360)`` | (width, height) of a picture, pixels |
     | ``render_style`` | str | ``"stick"`` | ``"stick"`` or ``"humanoid"`` |
     | ``robot`` | str or None | ``None`` | ``"unitree_g1"``, ``"booster_t1"`` or a humanoid MJCF path |
+    | ``lookahead`` | str | ``"auto"`` | ``"head"``, ``"exact"`` or ``"auto"`` (the head when there is one) |
 
     - ``frames_per_step``: the default 4 is one generator token, so a new target every step costs no
       more than one every token.
@@ -169,6 +170,10 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
       ``"humanoid"`` (the MuJoCo humanoid of :mod:`motion_env.replay`, needs offscreen OpenGL:
       ``MUJOCO_GL=egl`` or ``osmesa``); ``render_size`` = (width, height) in pixels. The render
       rate (``metadata["render_fps"]``) is 20 / ``frames_per_step``.
+    - ``lookahead``: how the generator's one-second look-ahead is made after a new command
+      (:attr:`motion_env.generation.streaming.MotionStream.lookahead`): ``"head"`` predicts it
+      in one pass (the frames emitted stay the path controller's), ``"exact"`` rolls the
+      controller out again (21 steps, the behaviour before the head).
     - ``robot``: every frame emitted is also retargeted onto that robot (``info["robot_qpos"]``,
       below) by :class:`motion_env.retarget.StreamRetargeter`: causal, IK warm-started from the
       previous frame, joint ranges respected, root height from the lowest foot geom; it adds about
@@ -237,6 +242,7 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         render_size: tuple[int, int] = (480, 360),
         render_style: str = "stick",
         robot: str | None = None,
+        lookahead: str = "auto",
     ) -> None:
         self.config = EnvConfig(
             action_mode=action_mode,
@@ -253,6 +259,7 @@ class WaypointsEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             follow_action=follow_action,
             invalid_action=invalid_action,
             random_start=random_start,
+            lookahead=lookahead,
         )
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(

@@ -178,12 +178,31 @@ def time_stream(generator: Any, batch: int, frames: int = 100) -> dict[str, floa
     return {"batch": batch, "frames": frames, **summary(times, first), "cpu": summary(cpu, first_cpu)}
 
 
-# The two ways an agent drives the env in the bench: following its route (world points, the
-# route target), or learning (a new random normalised target every step, no follow switch).
+# The ways an agent drives the env in the bench: following its route (world points, the route
+# target), or learning (a new random normalised target every step, no follow switch); with a
+# look-ahead head in the weights, the learner also with the exact look-ahead (the head's before).
 AGENTS = {
     "route": {"action_mode": "absolute", "frames_per_step": 1},
     "learner": {"action_mode": "normalized", "follow_action": False, "frames_per_step": 1},
+    "learner_exact": {
+        "action_mode": "normalized",
+        "follow_action": False,
+        "frames_per_step": 1,
+        "lookahead": "exact",
+    },
 }
+AGENT_LABELS = {
+    "route": "following the route",
+    "learner": "new target each step",
+    "learner_exact": "new target each step, exact look-ahead",
+}
+
+
+def bench_agents(generator: Any) -> list[str]:
+    """The agents of :data:`AGENTS` worth timing on `generator` (the exact look-ahead differs
+    from the learner's only when the weights have a look-ahead head)."""
+    has_head = generator.pipeline.lookahead is not None
+    return [a for a in AGENTS if a != "learner_exact" or has_head]
 
 
 def _agent_action(agent: str, info: dict, rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
@@ -306,13 +325,16 @@ def run_bench(
         "stream_lookahead_frames": gen.path_horizon,
         "control_delay_frames": gen.rate,
     }
+    agents = bench_agents(gen)
+    results["lookahead"] = "head" if "learner_exact" in agents else "exact"
     if env_steps > 0:
-        results["env_step_ms"] = calibrated(time_env, gen, env_steps)
-        results["env_step_ms_learner"] = calibrated(time_env, gen, env_steps, agent="learner")
+        for agent in agents:
+            key = "env_step_ms" if agent == "route" else f"env_step_ms_{agent}"
+            results[key] = calibrated(time_env, gen, env_steps, agent=agent)
     if vector_steps > 0:
         results["vector_env"] = [
             calibrated(vector_throughput, gen, n, steps=vector_steps, agent=agent)
-            for agent in AGENTS
+            for agent in agents
             for n in num_envs
         ]
     return results
@@ -362,11 +384,8 @@ def format_results(results: dict[str, Any]) -> str:
                 f"stream throughput, B={b}", s["frames_per_s"], None, "frames/s", 0, _quiet(s, "frames_per_s")
             )
         )
-    for key, label in (
-        ("env_step_ms", "following the route"),
-        ("env_step_ms_learner", "new target each step"),
-    ):
-        env = results.get(key)
+    for agent, label in AGENT_LABELS.items():
+        env = results.get("env_step_ms" if agent == "route" else f"env_step_ms_{agent}")
         if env:
             lines.append(
                 _row(f"env step, {label} (p99)", env["median"], env["p99"], "ms", 2, _quiet(env, "p99"))
@@ -375,7 +394,11 @@ def format_results(results: dict[str, Any]) -> str:
             lines.append(_row(f"env steps/s, {label}", rate, None, "steps/s", 0, _quiet(env, "steps_per_s")))
     for row in results.get("vector_env", []):
         n, fps, agent = row["num_envs"], row["frames_per_s"], row.get("agent", "route")
-        label = "following routes" if agent == "route" else "new targets"
+        label = (
+            AGENT_LABELS.get(agent, agent)
+            .replace("the route", "routes")
+            .replace("target each step", "targets")
+        )
         lines.append(
             _row(f"vector env, N={n}, {label}", fps, None, "steps/s", 0, _quiet(row, "frames_per_s"))
         )
@@ -401,6 +424,6 @@ def format_results(results: dict[str, Any]) -> str:
 
 def _measurements(results: dict[str, Any]) -> list[dict[str, Any]]:
     """Every calibrated measurement of a results dict."""
-    rows = [results.get("clip_latency_ms"), results.get("env_step_ms"), results.get("env_step_ms_learner")]
+    rows = [results.get("clip_latency_ms")] + [v for k, v in results.items() if k.startswith("env_step_ms")]
     rows += list(results.get("stream", [])) + list(results.get("vector_env", []))
     return [r for r in rows if r and "calibration_ms" in r]

@@ -27,9 +27,9 @@ from typing import Any
 
 import numpy as np
 
+from motion_env.data.dataset import read_index
 from motion_env.evaluation.captions import WALK_CAPTIONS, WAVE_RIGHT, heldout_caption
 from motion_env.evaluation.metrics import MISS, check_settings, foot_skating_ratio
-from motion_env.evaluation.route_following import read_index
 from motion_env.motion.kinematics import bone_lengths
 from motion_env.motion.skeleton import BONE_LENGTHS, JOINT_INDEX
 from motion_env.motion.trajectory import root_path_from_joints
@@ -43,7 +43,6 @@ __all__ = [
     "control_cases",
     "evaluate_control",
     "evaluate_objectives",
-    "format_control",
     "objective_cases",
     "run_control",
 ]
@@ -340,37 +339,20 @@ def _fmt_row(name: str, r: dict[str, Any]) -> str:
     )
 
 
-def format_control(results: dict[str, Any]) -> str:
-    """Plain-text tables of :func:`evaluate_control` (and :func:`evaluate_objectives` under "objectives")."""
-    lines = [CONTROL_HEAD]
-    if "no targets" in results:
-        lines.append(_fmt_row("no targets", results["no targets"]))
-    lines += [_fmt_row(name, r) for name, r in results.get("settings", {}).items()]
-    if "overall" in results:
-        o = results["overall"]
-        lines += [
-            "",
-            f"overall: mean error {o['mean_error_cm']:.2f} cm over all targets "
-            f"({o['mean_of_settings_cm']:.2f} cm "
-            f"mean of settings, worst setting {o['worst_setting_cm']:.2f} cm); largest share missed > 50 cm "
-            f"{o['target_miss_rate']:.3f}; skating up to {o['max_skating_ratio']:.2f}x real; jumps up to "
-            f"{o['max_jump_ratio']:.2f}x the real take's largest; "
-            f"bones within {o['max_bone_change_pct']:.2f} %; "
-            f"up to {o['max_seconds_per_clip']:.2f} s per clip",
-        ]
-    if "objectives" in results:
-        lines += ["", f"{'objective':<14}{'clips':>6}{'max viol cm':>12}{'held':>6}{'route done':>11}"
-                  f"{'skate':>7}{'without':>8}{'jump m':>8}{'without':>8}{'feet cm':>8}"
-                  f"{'s/clip':>8}"]  # fmt: skip
-        for kind, r in results["objectives"].items():
-            done = "-" if r["route_finished_rate"] is None else f"{r['route_finished_rate']:.2f}"
-            feet = "-" if r["lowest_foot_cm_in_limit"] is None else f"{r['lowest_foot_cm_in_limit']:.1f}"
-            lines.append(
-                f"{kind:<14}{r['clips']:>6}{r['max_violation_cm']:>12.2f}{r['held_rate']:>6.2f}{done:>11}"
-                f"{r['foot_skating']:>7.3f}{r['foot_skating_without']:>8.3f}{r['max_jump_m']:>8.3f}"
-                f"{r['max_jump_without_m']:>8.3f}{feet:>8}{r['seconds_per_clip']:>8.2f}"
-            )
-    return "\n".join(lines)
+OBJECTIVES_HEAD = (
+    f"{'objective':<14}{'clips':>6}{'max viol cm':>12}{'held':>6}{'route done':>11}{'skate':>7}"
+    f"{'without':>8}{'jump m':>8}{'without':>8}{'feet cm':>8}{'s/clip':>8}"
+)
+
+
+def _fmt_objective_row(kind: str, r: dict[str, Any]) -> str:
+    done = "-" if r["route_finished_rate"] is None else f"{r['route_finished_rate']:.2f}"
+    feet = "-" if r["lowest_foot_cm_in_limit"] is None else f"{r['lowest_foot_cm_in_limit']:.1f}"
+    return (
+        f"{kind:<14}{r['clips']:>6}{r['max_violation_cm']:>12.2f}{r['held_rate']:>6.2f}{done:>11}"
+        f"{r['foot_skating']:>7.3f}{r['foot_skating_without']:>8.3f}{r['max_jump_m']:>8.3f}"
+        f"{r['max_jump_without_m']:>8.3f}{feet:>8}{r['seconds_per_clip']:>8.2f}"
+    )
 
 
 @dataclass
@@ -420,21 +402,35 @@ class ControlResult:
     machine: dict[str, Any]
     seconds: float
 
-    def to_dict(self, command: str | None = None) -> dict[str, Any]:
-        """The results as JSON-ready data (with the `command` that made them, when given)."""
-        out: dict[str, Any] = {"settings": self.settings, "no targets": self.no_targets}
-        out["overall"] = self.overall
-        if self.objectives is not None:
-            out["objectives"] = self.objectives
-        if command is not None:
-            out["command"] = command
-        out.update(refine=self.refine, split=self.split, takes=self.takes, machine=self.machine)
-        out["seconds"] = self.seconds
+    def to_dict(self) -> dict[str, Any]:
+        """The results as JSON-ready data (``"no targets"`` as :func:`evaluate_control` names it;
+        no ``"objectives"`` when they were not run)."""
+        out = dataclasses.asdict(self)
+        out["no targets"] = out.pop("no_targets")
+        if self.objectives is None:
+            del out["objectives"]
         return out
 
     def format(self) -> str:
-        """The plain-text tables (:func:`format_control`)."""
-        return format_control(self.to_dict())
+        """Plain-text tables: the takes without targets and a row per setting, the overall
+        errors, then the objectives (when they were run)."""
+        o = self.overall
+        lines = [CONTROL_HEAD, _fmt_row("no targets", self.no_targets)]
+        lines += [_fmt_row(name, r) for name, r in self.settings.items()]
+        lines += [
+            "",
+            f"overall: mean error {o['mean_error_cm']:.2f} cm over all targets "
+            f"({o['mean_of_settings_cm']:.2f} cm "
+            f"mean of settings, worst setting {o['worst_setting_cm']:.2f} cm); largest share missed > 50 cm "
+            f"{o['target_miss_rate']:.3f}; skating up to {o['max_skating_ratio']:.2f}x real; jumps up to "
+            f"{o['max_jump_ratio']:.2f}x the real take's largest; "
+            f"bones within {o['max_bone_change_pct']:.2f} %; "
+            f"up to {o['max_seconds_per_clip']:.2f} s per clip",
+        ]
+        if self.objectives is not None:
+            lines += ["", OBJECTIVES_HEAD]
+            lines += [_fmt_objective_row(kind, r) for kind, r in self.objectives.items()]
+        return "\n".join(lines)
 
 
 def run_control(

@@ -138,12 +138,14 @@ def joint_jerk(joints: np.ndarray, fps: float = FPS) -> np.ndarray:
     return np.linalg.norm(np.diff(joints, n=3, axis=0), axis=-1) * fps**3
 
 
-def frechet_distance(a: np.ndarray, b: np.ndarray) -> float:
+def frechet_distance(a: np.ndarray, b: np.ndarray, b_weights: np.ndarray | None = None) -> float:
     """Fréchet distance between Gaussians fitted to two sets of feature vectors (as FID).
 
     ``|mu_a - mu_b|^2 + tr(S_a + S_b - 2 (S_a S_b)^(1/2))`` for (N, D) `a` and (M, D) `b`,
     N, M >= 2. With fewer samples than dimensions the covariances are rank-deficient and the
     distance carries a bias that shrinks with N: compare distances of sets of similar sizes.
+    `b_weights` ((M,) >= 0, not all 0; None: equal) weigh b's rows in its mean and covariance
+    (``np.cov``'s ``aweights``): a reference resampled to another mix of classes.
     """
     import warnings
 
@@ -152,8 +154,9 @@ def frechet_distance(a: np.ndarray, b: np.ndarray) -> float:
     a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
     if a.ndim != 2 or b.ndim != 2 or a.shape[1] != b.shape[1] or min(len(a), len(b)) < 2:
         raise ValueError(f"need two (N >= 2, D) feature sets of one width, got {a.shape} and {b.shape}")
-    mu = a.mean(0) - b.mean(0)
-    sa, sb = np.cov(a, rowvar=False), np.cov(b, rowvar=False)
+    w = _check_weights(b_weights, len(b))
+    mu = a.mean(0) - w @ b
+    sa, sb = np.cov(a, rowvar=False), np.cov(b, rowvar=False, aweights=w)
     with warnings.catch_warnings():
         # Fewer samples than dimensions make the product singular, as the docstring says.
         warnings.simplefilter("ignore", linalg.LinAlgWarning)
@@ -165,17 +168,30 @@ def frechet_distance(a: np.ndarray, b: np.ndarray) -> float:
     return float(mu @ mu + np.trace(sa) + np.trace(sb) - 2 * np.trace(np.real(root)))
 
 
-def diversity(features: np.ndarray) -> float:
+def diversity(features: np.ndarray, weights: np.ndarray | None = None) -> float:
     """Mean Euclidean distance between the feature vectors of every pair of clips ((N, D), N >= 2).
 
     The diversity of text-to-motion papers averages random pairs; with a few clips per action
-    every pair is used instead.
+    every pair is used instead. `weights` ((N,) >= 0, not all 0; None: equal): pair (i, j)
+    counts ``weights[i] * weights[j]``, as in :func:`frechet_distance`.
     """
     x = np.asarray(features, np.float64)
     if x.ndim != 2 or len(x) < 2:
         raise ValueError(f"need (N >= 2, D) features, got {x.shape}")
+    w = _check_weights(weights, len(x))
     d = np.linalg.norm(x[:, None] - x[None], axis=-1)
-    return float(d[np.triu_indices(len(x), 1)].mean())
+    i, j = np.triu_indices(len(x), 1)
+    return float(np.average(d[i, j], weights=w[i] * w[j]))
+
+
+def _check_weights(weights: np.ndarray | None, n: int) -> np.ndarray:
+    """(n,) weights summing to 1 (equal when None); ValueError naming the shape or the values."""
+    if weights is None:
+        return np.full(n, 1.0 / n)
+    w = np.asarray(weights, np.float64)
+    if w.shape != (n,) or not np.isfinite(w).all() or (w < 0).any() or w.sum() <= 0:
+        raise ValueError(f"weights must be ({n},) finite, >= 0 and not all 0, got shape {w.shape}")
+    return w / w.sum()
 
 
 def check_settings(settings: Any, **minimums: int) -> None:

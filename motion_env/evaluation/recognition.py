@@ -25,7 +25,7 @@ from __future__ import annotations
 import time
 from collections import defaultdict
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -43,7 +43,6 @@ __all__ = [
     "RecognitionResult",
     "RecognitionSettings",
     "evaluate_recognition",
-    "format_recognition",
     "recognition_scores",
     "run_recognition",
 ]
@@ -255,40 +254,6 @@ def _run_speeds(gen: Any, styles: tuple[str, ...], seeds: int, seed: int, frames
     return out
 
 
-def format_recognition(results: dict[str, Any]) -> str:
-    """The table as Markdown, then the turn, run and wave measures."""
-    lines = [
-        "| | action recognised | style recognised | right (action, style) among the top 3 | clips |",
-        "|---|---|---|---|---|",
-    ]
-    for row, r in results["table"].items():
-        clips = r.get("clips", "")
-        lines.append(f"| {row} | {r['action']:.2f} | {r['style']:.2f} | {r['pair_top3']:.2f} | {clips} |")
-    spec = results["specific"]
-    lines.append("")
-    for name in ("real held-out takes", *CAPTION_SETS):
-        s = spec.get(name, {})
-        parts = []
-        for action in ("walk-turn-left", "walk-turn-right"):
-            if action in s:
-                t = s[action]["turn_deg_named_way"]
-                parts.append(
-                    f"{action} {t['mean']:.0f} deg ({t['min']:.0f} to {t['max']:.0f}; "
-                    f"{s[action]['share_60_120']:.0%} in 60-120)"
-                )
-        for action in ("wave-left-hand", "wave-right-hand"):
-            if action in s:
-                parts.append(f"{action}: named hand highest {s[action]['named_hand_highest']:.0%}")
-        lines.append(f"{name}: " + "; ".join(parts))
-    runs = spec["runs_untimed_route"]
-    for name, r in runs.items():
-        if r:
-            share = r.get(f"share_at_least_{RUN_SPEED}")
-            tail = f", {share:.0%} >= {RUN_SPEED} m/s" if share is not None else ""
-            lines.append(f"run speed, {name}: {r['mean']:.2f} m/s ({r['min']:.2f} to {r['max']:.2f}){tail}")
-    return "\n".join(lines)
-
-
 @dataclass
 class RecognitionSettings:
     """What :func:`run_recognition` evaluates.
@@ -337,24 +302,42 @@ class RecognitionResult:
     classifier: dict[str, Any]
     seconds: float
 
-    def to_dict(self, command: str | None = None, caption_reader: str | None = None) -> dict[str, Any]:
-        """The results as JSON-ready data, with the `command` that made them and the name of the
-        `caption_reader` the generator was loaded with, when given."""
-        out: dict[str, Any] = {
-            "table": self.table, "per_label": self.per_label, "specific": self.specific,
-            "frames": self.frames, "actions": self.actions, "styles": self.styles,
-        }  # fmt: skip
-        if command is not None:
-            out["command"] = command
-        out.update(split=self.split, classifier=self.classifier)
-        if caption_reader is not None:
-            out["caption_reader"] = caption_reader
-        out["seconds"] = self.seconds
-        return out
+    def to_dict(self) -> dict[str, Any]:
+        """The results as JSON-ready data."""
+        return asdict(self)
 
     def format(self) -> str:
-        """The table as Markdown, then the turn, run and wave measures (:func:`format_recognition`)."""
-        return format_recognition(self.to_dict())
+        """The table as Markdown, then the turn, run and wave measures."""
+        lines = [
+            "| | action recognised | style recognised | right (action, style) among the top 3 | clips |",
+            "|---|---|---|---|---|",
+        ]
+        for row, r in self.table.items():
+            clips = r.get("clips", "")
+            lines.append(f"| {row} | {r['action']:.2f} | {r['style']:.2f} | {r['pair_top3']:.2f} | {clips} |")
+        lines.append("")
+        for name in ("real held-out takes", *CAPTION_SETS):
+            s = self.specific.get(name, {})
+            parts = []
+            for action in ("walk-turn-left", "walk-turn-right"):
+                if action in s:
+                    t = s[action]["turn_deg_named_way"]
+                    parts.append(
+                        f"{action} {t['mean']:.0f} deg ({t['min']:.0f} to {t['max']:.0f}; "
+                        f"{s[action]['share_60_120']:.0%} in 60-120)"
+                    )
+            for action in ("wave-left-hand", "wave-right-hand"):
+                if action in s:
+                    parts.append(f"{action}: named hand highest {s[action]['named_hand_highest']:.0%}")
+            lines.append(f"{name}: " + "; ".join(parts))
+        for name, r in self.specific["runs_untimed_route"].items():
+            if r:
+                share = r.get(f"share_at_least_{RUN_SPEED}")
+                tail = f", {share:.0%} >= {RUN_SPEED} m/s" if share is not None else ""
+                lines.append(
+                    f"run speed, {name}: {r['mean']:.2f} m/s ({r['min']:.2f} to {r['max']:.2f}){tail}"
+                )
+        return "\n".join(lines)
 
 
 def run_recognition(

@@ -16,13 +16,13 @@ routes, for streaming (:meth:`MotionGenerator.stream`); foot skating of every ge
 
 from __future__ import annotations
 
-import csv
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from motion_env.data.dataset import read_index
 from motion_env.evaluation.captions import RUN_CAPTIONS, WALK_CAPTIONS, heldout_caption
 from motion_env.evaluation.metrics import foot_skating_ratio, route_summary
 from motion_env.motion.skeleton import FPS
@@ -97,14 +97,6 @@ def synthetic_cases(num_frames: int = 200, repeats: int = 2, seed: int = 0) -> l
                 text = captions[int(rng.integers(len(captions)))]
                 cases.append(Case(f"{kind}-{pace}-{r}", text, wp, np.zeros(3, np.float32), num_frames, pace))
     return cases
-
-
-def read_index(data_dir: Path) -> dict[str, dict[str, str]]:
-    path = data_dir / "index.csv"
-    if not path.is_file():
-        return {}
-    with path.open(newline="", encoding="utf-8") as f:
-        return {row["name"]: row for row in csv.DictReader(f)}
 
 
 def heldout_cases(

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from motion_env.data.dataset import read_index
 from motion_env.evaluation.captions import (
     RUN_CAPTIONS,
     RUN_CAPTIONS_TRAINING_PHRASING,
@@ -25,7 +26,6 @@ from motion_env.evaluation.captions import (
     WAVE_RIGHT,
 )
 from motion_env.evaluation.metrics import heading_change, speed_and_cadence, wrist_heights
-from motion_env.evaluation.route_following import read_index
 
 
 def _mean_std(values: list[float]) -> dict[str, float]:

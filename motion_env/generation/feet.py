@@ -14,6 +14,7 @@ __all__ = [
     "FOOT_SOFTNESS",
     "FOOT_STRETCH",
     "LEGS",
+    "TOE_HINT_LENGTH",
     "FootPinner",
     "release_fade",
     "soft_limit",
@@ -36,6 +37,9 @@ FOOT_MAX_OFFSET = 0.35
 # back to its bend in one frame (the knees' pops of generated walks, up to 100 m/s^2).
 FOOT_STRETCH = 0.99
 FOOT_SOFTNESS = 0.02
+# Metres of horizontal ankle-to-toe length (a flat foot's is about 14 cm) from which the toes
+# bend a re-solved knee with their whole weight (two_bone_ik's hint_length).
+TOE_HINT_LENGTH = 0.1
 
 
 def release_fade(since: np.ndarray) -> np.ndarray:
@@ -73,6 +77,16 @@ def soft_reach(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, goal: np.nd
     return hip + v * (soft_limit(d, start, band) / np.maximum(d, 1e-9))[:, None]
 
 
+def _turned(v: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N, 3) vectors `v` turned by the shortest rotation taking unit `a` to unit `b` (N, 3);
+    opposite axes (no shortest rotation) leave `v` as it is."""
+    c = np.cross(a, b)
+    dot = (a * b).sum(-1, keepdims=True)
+    cv = np.cross(c, v)
+    turned = v + cv + np.cross(c, cv) / np.maximum(1.0 + dot, 1e-6)
+    return np.where(dot > -0.999, turned, v)
+
+
 def two_bone_ik(
     hip: np.ndarray,
     knee: np.ndarray,
@@ -80,14 +94,20 @@ def two_bone_ik(
     target: np.ndarray,
     bend_hint: np.ndarray | None = None,
     hint_weight: float = 0.05,
+    hint_length: float = 0.0,
 ) -> tuple:
     """Analytic two-bone IK per frame: hip fixed, bone lengths kept, the ankle moved to the target.
 
     The knee keeps the side it bent to, measured against the leg's *original* hip-ankle axis:
     measured against the new axis, a nearly straight leg's bend direction is noise, and the knee
-    can flip backwards or sideways (hip twists of 90 degrees on runs). An optional `bend_hint`
-    (e.g. the direction the toes point) adds a bias of `hint_weight` m (5 cm), so a straight leg
-    bends that way.
+    can flip backwards or sideways (hip twists of 90 degrees on runs). That side turns with the
+    leg, by the rotation that takes the original axis to the new one (projected on the new axis
+    instead, a target far from the ankle, such as a pin the body dragged 30 cm behind, left
+    little of it and the knee jumped sideways for a frame). An optional `bend_hint` (e.g. the
+    direction the toes point) adds a bias of `hint_weight` m (5 cm), so a straight leg bends
+    that way; a hint shorter than `hint_length` m adds as much less (a foot pointing down has
+    a short, noisy horizontal toe direction: given its whole weight, it swung the knee 4 cm
+    sideways for a frame at toe-off).
 
     All (N, 3); returns (new knee, new ankle).
     """
@@ -102,8 +122,9 @@ def two_bone_ik(
     bend = (knee - hip) - ((knee - hip) * axis0).sum(-1, keepdims=True) * axis0
     if bend_hint is not None:
         hint_n = np.linalg.norm(bend_hint, axis=-1, keepdims=True)
-        bend = bend + hint_weight * bend_hint / np.maximum(hint_n, 1e-9)
-    pole = bend - (bend * u).sum(-1, keepdims=True) * u
+        bend = bend + hint_weight * bend_hint / np.maximum(hint_n, max(hint_length, 1e-9))
+    pole = _turned(bend, axis0, u)
+    pole = pole - (pole * u).sum(-1, keepdims=True) * u
     pole_n = np.linalg.norm(pole, axis=-1, keepdims=True)
     # A straight leg with no hint has no bend plane: bend the knee along the original shin.
     fallback = (ankle - knee) - ((ankle - knee) * u).sum(-1, keepdims=True) * u
@@ -198,7 +219,9 @@ class FootPinner:
             goal = soft_reach(frames[:, hip], frames[:, knee], frames[:, ankle], goal)
             toes = frames[:, toe] - frames[:, ankle]
             toes[:, 1] = 0.0  # a knee points the way the foot does
-            new_knee, new_ankle = two_bone_ik(frames[:, hip], frames[:, knee], frames[:, ankle], goal, toes)
+            new_knee, new_ankle = two_bone_ik(
+                frames[:, hip], frames[:, knee], frames[:, ankle], goal, toes, hint_length=TOE_HINT_LENGTH
+            )
             frames[:, toe] += new_ankle - frames[:, ankle]
             frames[:, knee], frames[:, ankle] = new_knee, new_ankle
             out[moved] = frames

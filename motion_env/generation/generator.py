@@ -6,9 +6,10 @@ hands the same pipeline to :class:`~motion_env.generation.streaming.MotionStream
 stages one token at a time. It also loads and saves the weights.
 
 Weights: a directory holding ``vqvae.pt`` (with the dataset Mean/Std), ``gpt.pt`` and
-``controller.pt`` (:mod:`motion_env.models.checkpoint` files) and optionally ``sampling.json`` and
-``caption_adapter.pt`` (:mod:`motion_env.models.caption_adapter`); the shipped default is
-``motion_env/weights/`` inside the package.
+``controller.pt`` (:mod:`motion_env.models.checkpoint` files) and optionally ``sampling.json``,
+``caption_adapter.pt`` (:mod:`motion_env.models.caption_adapter`), ``pace.pt``
+(:mod:`motion_env.models.pace`) and ``lookahead.pt`` (:mod:`motion_env.models.lookahead`); the
+shipped default is ``motion_env/weights/`` inside the package.
 """
 
 from __future__ import annotations
@@ -37,9 +38,10 @@ from motion_env.models.caption_adapter import CaptionAdapter
 from motion_env.models.checkpoint import check_text_encoder, load_checkpoint, save_checkpoint, training_record
 from motion_env.models.controller import ControllerConfig, PathController
 from motion_env.models.gpt import GPTConfig, TokenGPT
+from motion_env.models.lookahead import LOOKAHEAD_FILE, controller_fingerprint, load_lookahead
 from motion_env.models.normalizer import Normalizer
 from motion_env.models.pace import PACE_FILE, load_pace
-from motion_env.models.sampling import SamplingConfig
+from motion_env.models.sampling import SAMPLING_FILE, SamplingConfig, load_sampling
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
 from motion_env.motion.features import rest_pose_features
 from motion_env.motion.skeleton import FEATURE_DIM, FPS
@@ -54,7 +56,6 @@ __all__ = ["DEFAULT_WEIGHTS", "RANDOM_MODEL", "MotionGenerator", "SamplingConfig
 # The shipped model, found relative to the package.
 DEFAULT_WEIGHTS = Path(__file__).resolve().parents[1] / "weights"
 WEIGHT_FILES = {"vqvae": "vqvae.pt", "gpt": "gpt.pt", "controller": "controller.pt"}
-SAMPLING_FILE = "sampling.json"
 # What `gen.<name>` reads from the pipeline (see MotionGenerator.__getattr__).
 PIPELINE_PARTS = frozenset(
     {"vqvae", "gpt", "controller", "device", "rate", "path_horizon", "text_encoder", "text_encoder_name"}
@@ -171,25 +172,22 @@ class MotionGenerator:
         if text_encoder is not None and adapter is None:
             check_text_encoder(gpt_ckpt, text_encoder, folder / WEIGHT_FILES["gpt"])
             check_text_encoder(ctrl_ckpt, text_encoder, folder / WEIGHT_FILES["controller"])
-        if sampling is None and (folder / SAMPLING_FILE).is_file():
-            try:
-                sampling = SamplingConfig(**json.loads((folder / SAMPLING_FILE).read_text()))
-            except (TypeError, ValueError) as exc:
-                raise ValueError(f"{folder / SAMPLING_FILE}: {exc}") from exc
+        sampling = load_sampling(folder) if sampling is None else sampling
         untrained = any(bool(c.get("untrained", False)) for c in (vq_ckpt, gpt_ckpt, ctrl_ckpt))
         gen = cls(
             vq, gpt, ctrl, mean=normalizer.mean, std=normalizer.std,
             text_encoder=text_encoder, text_encoder_name=records[0], sampling=sampling,
             untrained=untrained, device=device, name=str(folder), caption_adapter=adapter,
         )  # fmt: skip
-        for kind, ckpt in (("vqvae", vq_ckpt), ("gpt", gpt_ckpt), ("controller", ctrl_ckpt)):
-            gen.training_info[kind] = training_record(ckpt)
-        if adapter_ckpt is not None:
-            gen.training_info["caption_adapter"] = training_record(adapter_ckpt)
         gen.pipeline.vocabulary = load_vocabulary(folder)
+        # Optional: untimed routes at the caption's pace, the stream's look-ahead in one pass.
         gen.pipeline.pace, pace_ckpt = load_pace(folder, records[0], ctrl.config.text_dim, device)
-        if pace_ckpt is not None:  # optional: untimed routes at the caption's pace
-            gen.training_info["pace"] = training_record(pace_ckpt)
+        gen.pipeline.lookahead, head_ckpt = load_lookahead(folder, ctrl, device)
+        checkpoints = {
+            "vqvae": vq_ckpt, "gpt": gpt_ckpt, "controller": ctrl_ckpt,
+            "caption_adapter": adapter_ckpt, "pace": pace_ckpt, "lookahead": head_ckpt,
+        }  # fmt: skip
+        gen.training_info.update({k: training_record(c) for k, c in checkpoints.items() if c is not None})
         return gen
 
     @classmethod
@@ -211,10 +209,7 @@ class MotionGenerator:
         # A quantizer that was never trained has an all-zero codebook; give it distinct codes.
         vq.quantizer.codebook.normal_()
         gpt = TokenGPT(GPTConfig(vocab_size=32, block_size=16, n_layer=1, n_head=2, n_embd=32, dropout=0.0))
-        ctrl = PathController(ControllerConfig(text_proj=16, hidden=32, mlp=32))
-        # The controller starts at "stand still" (zero output layer); let the random one drift.
-        torch.nn.init.normal_(ctrl.out[-1].weight, std=0.1)
-        torch.nn.init.normal_(ctrl.out[-1].bias, std=0.1)
+        ctrl = PathController.drifting(ControllerConfig(text_proj=16, hidden=32, mlp=32), std=0.1)
         mean = rest_pose_features()
         std = np.full(FEATURE_DIM, 0.02, np.float32)
         return cls(
@@ -249,22 +244,22 @@ class MotionGenerator:
             model=self.controller, half=half, text_encoder=record,
             **extra, **self._training_extra("controller"),
         )  # fmt: skip
-        adapter = self.pipeline.caption_adapter
-        if adapter is not None:
+        # The optional models; a stale file of one not in use would read these models wrongly.
+        # The pace regressor is 6 kB: it stays float32.
+        optional = (
+            (ADAPTER_FILE, "caption_adapter", self.pipeline.caption_adapter, half, {}),
+            (PACE_FILE, "pace", self.pipeline.pace, False, {}),
+            (LOOKAHEAD_FILE, "lookahead", self.pipeline.lookahead, half,
+             {"controller_fingerprint": controller_fingerprint(self.controller)}),
+        )  # fmt: skip
+        for file, kind, model, halved, entries in optional:
+            if model is None:
+                (folder / file).unlink(missing_ok=True)
+                continue
             save_checkpoint(
-                folder / ADAPTER_FILE, kind="caption_adapter", config=adapter.config, model=adapter,
-                half=half, text_encoder=record, **self._training_extra("caption_adapter"),
+                folder / file, kind=kind, config=model.config, model=model, half=halved,
+                text_encoder=record, **entries, **self._training_extra(kind),
             )  # fmt: skip
-        else:
-            (folder / ADAPTER_FILE).unlink(missing_ok=True)  # a stale one would adapt these models
-        pace = self.pipeline.pace
-        if pace is not None:
-            save_checkpoint(
-                folder / PACE_FILE, kind="pace", config=pace.config, model=pace, text_encoder=record,
-                **self._training_extra("pace"),
-            )  # fmt: skip
-        else:
-            (folder / PACE_FILE).unlink(missing_ok=True)
         (folder / SAMPLING_FILE).write_text(json.dumps(asdict(self.sampling), indent=2) + "\n")
         if self.pipeline.vocabulary is not None:  # what the model knows travels with it
             self.pipeline.vocabulary.save(folder)

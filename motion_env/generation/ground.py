@@ -1,21 +1,21 @@
-"""The body on the floor: its centre of mass, its soles, which feet touch the floor, and the legs'
-re-solve that puts planted feet on it and lifts free feet out of it.
+"""The body on the floor: its soles, which feet touch the floor, and the legs' re-solve that puts
+planted feet on it and lifts free feet out of it.
 
-The physics stage (:mod:`motion_env.generation.physics`) plans the heights of the centre of mass;
-this module measures the body that plan moves (:func:`centre_of_mass`, :func:`sole_heights`,
-:func:`flight_frames`, :func:`support_gap`) and places it (:func:`place_body`,
-:func:`ground_feet`). The sole is the replay's humanoid's (:mod:`motion_env.replay.humanoid`).
+The physics stage (:mod:`motion_env.generation.physics`) plans the heights of the centre of mass
+(:func:`motion_env.motion.mass.centre_of_mass`); this module measures the body that plan moves
+(:func:`sole_heights`, :func:`flight_frames`, :func:`support_gap`) and places it
+(:func:`place_body`, :func:`ground_feet`). The sole is the replay's humanoid's
+(:mod:`motion_env.replay.humanoid`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from motion_env.generation.feet import LEGS, two_bone_ik
-from motion_env.motion.skeleton import NUM_JOINTS
+from motion_env.generation.feet import LEGS, TOE_HINT_LENGTH, two_bone_ik
+from motion_env.motion.mass import centre_of_mass
 
 __all__ = [
-    "COM_WEIGHTS",
     "FLAT_ANKLE_HEIGHT",
     "FLAT_ANKLE_RANGE",
     "FLIGHT_CLEARANCE",
@@ -26,7 +26,6 @@ __all__ = [
     "SWING_RISE",
     "SWING_SPEEDS",
     "SWING_STRAIGHT",
-    "centre_of_mass",
     "deepest_reach",
     "flight_frames",
     "ground_feet",
@@ -67,44 +66,6 @@ SWING_LANDING, SWING_STRAIGHT = 0.005, 0.97
 # Shift-then-ground passes: grounding a planted leg moves its knee, and so the centre of mass a
 # little; each pass removes most of what is left, until it is within _PLACE_TOLERANCE (m).
 _PASSES, _PLACE_TOLERANCE = 8, 2e-5
-
-
-def _com_weights() -> np.ndarray:
-    """(22,) weights w with centre of mass = sum_j w_j joints_j: de Leva's segment masses and
-    centres (as the replay's humanoid, :mod:`motion_env.replay.humanoid`), each segment's centre a
-    fixed blend of its two joints."""
-    w = np.zeros(NUM_JOINTS)
-
-    def segment(a: int, b: int, mass: float, at: float) -> None:  # centre at a + at * (b - a)
-        w[a] += mass * (1.0 - at)
-        w[b] += mass * at
-
-    segment(3, 1, 0.1117 * 0.5, 0.6115)  # lower trunk: spine1 to the hips' midpoint
-    segment(3, 2, 0.1117 * 0.5, 0.6115)
-    segment(6, 3, 0.1000, 0.4502)  # middle trunk
-    segment(9, 6, 0.0633, 0.4502)
-    segment(12, 9, 0.1396, 0.2999)  # upper trunk
-    segment(12, 15, 0.0694, 0.91)  # head: its centre lies just short of the head joint
-    limbs = ((1, 4, 7, 10, 13, 16, 18, 20), (2, 5, 8, 11, 14, 17, 19, 21))  # left, right
-    for hip, knee, ankle, toe, collar, shoulder, elbow, wrist in limbs:
-        segment(hip, knee, 0.1416, 0.4095)
-        segment(knee, ankle, 0.0433, 0.4459)
-        segment(ankle, toe, 0.0137, 0.5)
-        segment(collar, shoulder, 0.0100, 0.5)
-        segment(shoulder, elbow, 0.0271, 0.5772)
-        segment(elbow, wrist, 0.0162, 0.4574)
-        segment(wrist, elbow, 0.0061, -0.27)  # the hand, past the wrist
-    return w
-
-
-COM_WEIGHTS = _com_weights()
-"""(22,) joint weights of the centre of mass (they sum to 1): a vertical shift of every joint
-shifts the centre of mass by as much."""
-
-
-def centre_of_mass(joints: np.ndarray) -> np.ndarray:
-    """Centre of mass of (..., 22, 3) joints -> (..., 3), within about 2 mm of the replay's."""
-    return np.einsum("j,...jc->...c", COM_WEIGHTS, joints)
 
 
 def sole_heights(joints: np.ndarray, flat_ankle: float | np.ndarray = FLAT_ANKLE_HEIGHT) -> np.ndarray:
@@ -169,7 +130,9 @@ def ground_feet(
         goal[:, 1] += lift[moved]
         toes = frames[:, toe] - frames[:, ankle]
         toes[:, 1] = 0.0  # a straight knee bends the way the foot points
-        new_knee, new_ankle = two_bone_ik(frames[:, hip], frames[:, knee], frames[:, ankle], goal, toes)
+        new_knee, new_ankle = two_bone_ik(
+            frames[:, hip], frames[:, knee], frames[:, ankle], goal, toes, hint_length=TOE_HINT_LENGTH
+        )
         frames[:, toe] += new_ankle - frames[:, ankle]
         frames[:, knee], frames[:, ankle] = new_knee, new_ankle
         out[moved] = frames

@@ -34,7 +34,6 @@ from motion_env.generation.ground import (
     FLAT_ANKLE_HEIGHT,
     FLAT_ANKLE_RANGE,
     SWING_STRAIGHT,
-    centre_of_mass,
     deepest_reach,
     flight_frames,
     place_body,
@@ -43,6 +42,7 @@ from motion_env.generation.ground import (
     swing_clearance,
 )
 from motion_env.generation.height_plan import GRAVITY, STANCE_ACCELERATION, plan_heights
+from motion_env.motion.mass import centre_of_mass
 from motion_env.motion.skeleton import FOOT_JOINTS, FPS, NUM_JOINTS
 
 __all__ = [

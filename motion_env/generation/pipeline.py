@@ -63,6 +63,7 @@ from motion_env.generation.route_planning import needs_pace, pace_route, plan_ro
 from motion_env.models.caption_adapter import CaptionAdapter
 from motion_env.models.controller import ControllerState, PathController
 from motion_env.models.gpt import TokenGPT
+from motion_env.models.lookahead import LookaheadHead
 from motion_env.models.normalizer import Normalizer
 from motion_env.models.pace import PaceRegressor
 from motion_env.models.path_features import LOOKAHEAD_FRAMES, token_path_features
@@ -175,6 +176,9 @@ class Pipeline:
         # Stage 2's pace regressor (models.pace): untimed routes are followed at the caption's pace
         # (generation.route_planning.pace_route); None: at the controller's own.
         self.pace: PaceRegressor | None = None
+        # The stream's look-ahead head (models.lookahead): after a change it predicts the second
+        # ahead instead of rolling the controller out again; None: the stream rolls it out.
+        self.lookahead: LookaheadHead | None = None
 
     # ------------------------------------------------------------------ sizes
     @property

@@ -13,6 +13,11 @@ frames) at a time:
   after those already decoded (at most ``rate`` frames, 0.2 s, after the call). The controller's
   look-ahead is rolled out again from the last decoded frame, so no emitted pose moves and the
   path does not jump.
+- After a change, :attr:`MotionStream.lookahead` ``"exact"`` rolls the whole second out again;
+  ``"head"`` (the default with a look-ahead head, :mod:`motion_env.models.lookahead`) rolls out
+  the token's ``rate`` frames only (decoded frames are always the controller's) and predicts the
+  rest in one pass; the roll-out then catches up (:data:`CATCH_UP_TOKENS`). Without changes both
+  are the controller's alone.
 - Tokens are sampled one at a time with the GPT's KV cache; the VQ-VAE decodes the newest token
   with its convolutions' history cached (:class:`motion_env.models.vqvae.DecoderStream`); the
   recompose runs on a short window of recent frames, of which only the new ones are emitted; the foot cleanup
@@ -60,6 +65,9 @@ __all__ = ["MotionStream"]
 
 # Frames of decoded body kept as left context of the recompose.
 STREAM_CONTEXT_FRAMES = 40
+# After a predicted look-ahead the roll-out advances by up to this many tokens' frames per token
+# until it is a horizon ahead again (a token's cost stays bounded while it catches up).
+CATCH_UP_TOKENS = 2
 
 
 class MotionStream:
@@ -73,6 +81,8 @@ class MotionStream:
     Attributes:
         batch_size: B.
         lookahead_frames: how far (frames) the controller runs ahead of the emitted frame at most.
+        lookahead: ``"head"`` or ``"exact"``: how the look-ahead is made again after a change (see
+            the module docstring; settable; "head" needs a pipeline with a ``lookahead`` head).
         control_delay_frames: the most frames between :meth:`set_text` / :meth:`set_waypoints`
             and the first frame that follows the change (the rest of the decoded token).
     """
@@ -121,8 +131,10 @@ class MotionStream:
         self._physics = PhysicsFilter(b) if g.physics else None
         self._emitted = np.zeros(b, np.int64)
         self._decoded = np.zeros(b, np.int64)
-        self._dirty = np.zeros(b, bool)
-        self._route_changed = np.zeros(b, bool)
+        # A change waits for the next token; `_predicted`: the look-ahead beyond the roll-out is the head's.
+        self._dirty, self._route_changed, self._predicted = (np.zeros(b, bool) for _ in range(3))
+        # Checked routes, planned when the next token needs them (the last one counts): plan_route's args.
+        self._pending: dict[int, tuple[np.ndarray | None, np.ndarray, int]] = {}
         self._decoder = g.vqvae.decoder_stream(b)
         self._prev = torch.zeros(b, dtype=torch.long)
         self._buffer = np.zeros((b, rate, NUM_JOINTS, 3), np.float32)
@@ -130,6 +142,10 @@ class MotionStream:
         self._buffer_pos = np.full(b, rate, np.int64)  # rate = empty
         self._root = start_arr.copy()
         self._control = StreamControl(b)  # joint targets and height limits (set_joint_targets, ...)
+        self._head = g.lookahead
+        if self._head is not None and self._head.config.horizon < self._horizon:
+            raise ValueError(f"look-ahead head horizon {self._head.config.horizon} < {self._horizon} frames")
+        self._lookahead = "exact" if self._head is None else "head"
 
         emb = g.encode_text(self._texts)
         self._cache = g.gpt.new_cache(emb, g.sampling.guidance)
@@ -163,6 +179,17 @@ class MotionStream:
         text = self._front.text if index is None else self._front.text[int(self._rows(index)[0])]
         return self._pipe.controller.text_proj(text).cpu().numpy().astype(np.float32)
 
+    @property
+    def lookahead(self) -> str:
+        """How the look-ahead is made again after a change: "head" or "exact" (module docstring)."""
+        return self._lookahead
+
+    @lookahead.setter
+    def lookahead(self, mode: str) -> None:
+        if mode not in ("exact", "head") or (mode == "head" and self._head is None):
+            raise ValueError(f"lookahead must be 'exact' or 'head' (needs a lookahead.pt), got {mode!r}")
+        self._lookahead = mode
+
     # ------------------------------------------------------------------ steering
     def _rows(self, index: int | None) -> np.ndarray:
         if index is None:
@@ -195,9 +222,8 @@ class MotionStream:
         route = check_route(waypoints)
         for i in self._rows(index):
             # Feasible from where the character is now (times are frames of its episode).
-            where = self._root[i, :2]
-            frame = int(self._emitted[i])
-            self._routes[i] = plan_route(check_feasible(route, where, self.infeasible, frame), where, frame)
+            where, frame = self._root[i, :2].copy(), int(self._emitted[i])
+            self._pending[int(i)] = (check_feasible(route, where, self.infeasible, frame), where, frame)
             self._dirty[i] = self._route_changed[i] = True
 
     def set_joint_targets(
@@ -282,7 +308,8 @@ class MotionStream:
         self._texts[i], self._routes[i] = text, route
         self._snapped[i, 0] = start_arr
         self._emitted[i] = self._decoded[i] = 0
-        self._dirty[i] = self._route_changed[i] = False
+        self._dirty[i] = self._route_changed[i] = self._predicted[i] = False
+        self._pending.pop(int(i), None)
         self._decoder.reset([i])
         self._feet.reset(i)
         if self._physics is not None:
@@ -329,6 +356,8 @@ class MotionStream:
         changed = self._route_changed[rows]
         if changed.any():
             moved = rows[changed]
+            for i in moved:
+                self._routes[i] = plan_route(*self._pending.pop(int(i)))
             self._front = g.controller.set_routes(self._front, moved, [self._routes[i] for i in moved])
             moved_t = torch.as_tensor(moved, device=g.device)
             self._states.queue[moved_t, slots[torch.as_tensor(changed)]] = self._front.queue[moved_t]
@@ -348,6 +377,25 @@ class MotionStream:
             sub, trace = g.controller.run(sub, int(n), trace=True)
             self._states.record_trace(group, first, trace)
             self._front = sub if whole else self._front.put(group, sub)
+
+    def _advance_with_head(
+        self, rows: np.ndarray, first: np.ndarray, last: np.ndarray, changed: np.ndarray
+    ) -> None:
+        """The look-ahead of `rows` up to frames `last`: rows `changed` roll out the token's frames,
+        rows catching up CATCH_UP_TOKENS tokens' frames, the others all; the head predicts the rest."""
+        front = self._front.frame.cpu().numpy()[rows]
+        end = first + self._rate - 1  # the token's last frame
+        behind = self._predicted[rows] & ~changed
+        target = np.where(behind, np.minimum(last, front + CATCH_UP_TOKENS * self._rate), last)
+        target = np.where(changed, end, np.maximum(target, end))
+        self._advance(rows, target)
+        short = target < last
+        self._predicted[rows] = short
+        if not short.any():
+            return
+        sub = self._front.take(torch.as_tensor(rows[short], device=self._pipe.device))
+        roots = self._head.predict(self._pipe.controller, sub).cpu().numpy()  # (N, H, 3)
+        self._states.record_roots(rows[short], target[short], roots, (last - target)[short])
 
     def _snap_ahead(self, i: int, anchor: int, last: int) -> np.ndarray:
         """Character i's root path over frames anchor..last, continuing its committed path.
@@ -399,10 +447,15 @@ class MotionStream:
     def _plan_paths(self, rows: np.ndarray, first: np.ndarray) -> list[np.ndarray]:
         """Each row's root path over frames first..first+horizon: committed up to the anchor (one
         frame before the token), the controller's look-ahead snapped beyond it."""
-        dirty = rows[self._dirty[rows]]
-        if len(dirty):
-            self._restore(dirty)
-        self._advance(rows, first + self._horizon)
+        changed = self._dirty[rows].copy()
+        if changed.any():
+            self._restore(rows[changed])
+        last = first + self._horizon
+        if self._lookahead == "head":
+            self._advance_with_head(rows, first, last, changed)
+        else:
+            self._advance(rows, last)
+            self._predicted[rows] = False
         ahead = []
         for n, i in enumerate(rows):
             f = int(first[n])

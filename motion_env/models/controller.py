@@ -32,7 +32,6 @@ from torch import nn
 
 from motion_env.models.controller_state import ControllerState, Trace
 from motion_env.models.waypoint_features import (
-    WAYPOINT_FEATURES,
     Constants,
     RouteView,
     constants,
@@ -41,6 +40,7 @@ from motion_env.models.waypoint_features import (
     pack_waypoints,
     route_view,
     slot_features,
+    step_input_dim,
 )
 from motion_env.motion.trajectory import validate_waypoints
 from motion_env.motion.validation import CheckedConfig, NonNegativeFloat, PositiveFloat, PositiveInt
@@ -80,7 +80,7 @@ class ControllerConfig(CheckedConfig):
 
     @property
     def input_dim(self) -> int:
-        return self.text_proj + self.num_slots * WAYPOINT_FEATURES + 3
+        return step_input_dim(self.text_proj, self.num_slots)
 
 
 class PathController(nn.Module):
@@ -98,6 +98,16 @@ class PathController(nn.Module):
         nn.init.zeros_(self.out[-1].weight)
         nn.init.zeros_(self.out[-1].bias)
         self._text_cache: tuple[torch.Tensor, tuple[int, int], torch.Tensor] | None = None
+
+    @classmethod
+    def drifting(cls, config: ControllerConfig, std: float) -> PathController:
+        """An untrained controller whose output layer is random (normal, `std`) from torch's
+        global generator: a new one stands still, this one drifts (for tests and the random
+        generator)."""
+        model = cls(config)
+        for p in model.out[-1].parameters():
+            nn.init.normal_(p, std=std)
+        return model
 
     @property
     def device(self) -> torch.device:

@@ -130,6 +130,15 @@ class StateRing:
         self.queue[at] = trace.queue[:, -n:]
         self.roots[rows.cpu().numpy()[:, None], slot.cpu().numpy()] = trace.roots[:, -n:].cpu().numpy()
 
+    def record_roots(self, rows: np.ndarray, after: np.ndarray, roots: np.ndarray, count: np.ndarray) -> None:
+        """Store the roots only (not a controller state: a prediction, never restored) of frames
+        after+1 .. after+count[n] of each row n: `roots` (N, H, 3), count (N,) <= H."""
+        k = np.arange(roots.shape[1])
+        keep = k[None] < count[:, None]  # (N, H)
+        slots = (after[:, None] + 1 + k[None]) % self.size
+        at = np.broadcast_to(rows[:, None], slots.shape)
+        self.roots[at[keep], slots[keep]] = roots[keep]
+
     def restore(self, state: ControllerState, rows: torch.Tensor, frames: torch.Tensor) -> ControllerState:
         """`state` with `rows` rolled back to their recorded state at `frames` (one each)."""
         slots = frames % self.size

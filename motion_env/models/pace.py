@@ -11,8 +11,10 @@ and says how fast the takes of such captions travel, from the train split's take
 at that pace, for whole clips (the stream keeps the controller's own pace: its causal bend cannot
 bring back a waypoint that a timed route let the controller pass before reaching it).
 
-A linear map (ridge regression) on the embedding, clipped at zero: captions of standing motion
-(waves, bows) get a pace near 0 and leave untimed routes untimed.
+A linear map (ridge regression) on the embedding, or with ``hidden > 0`` one hidden layer (GELU)
+before it, clipped at zero: captions of standing motion (waves, bows) get a pace near 0 and leave
+untimed routes untimed. The hidden layer is there because a linear map cannot give a style its own
+effect on each action: elderly runs go half as fast as the others, elderly walks a third slower.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ import torch
 from torch import nn
 
 from motion_env.models.checkpoint import load_checkpoint
-from motion_env.motion.validation import CheckedConfig, PositiveInt
+from motion_env.motion.validation import CheckedConfig, NonNegativeInt, PositiveInt
 
 __all__ = ["PACE_FILE", "PaceConfig", "PaceRegressor", "load_pace"]
 
@@ -40,19 +42,23 @@ class PaceConfig(CheckedConfig):
     Attributes:
         text_dim: width of the caption embedding it reads (the controller's ``text_dim``).
         max_pace: m/s; the prediction is clipped to [0, max_pace] (the fastest takes: 4.5 m/s).
+        hidden: width of the hidden layer (0: none, a linear map).
     """
 
     text_dim: PositiveInt = 768
     max_pace: Annotated[float, "(0, 12]"] = 5.0
+    hidden: NonNegativeInt = 0
 
 
 class PaceRegressor(nn.Module):
-    """(N, text_dim) caption embeddings -> (N,) pace in m/s (a linear map, clipped)."""
+    """(N, text_dim) caption embeddings -> (N,) pace in m/s (a linear map, or one hidden layer and a
+    linear map; clipped)."""
 
     def __init__(self, config: PaceConfig) -> None:
         super().__init__()
         self.config = config
-        self.linear = nn.Linear(config.text_dim, 1)
+        self.hidden = nn.Linear(config.text_dim, config.hidden) if config.hidden else None
+        self.linear = nn.Linear(config.hidden or config.text_dim, 1)
         nn.init.zeros_(self.linear.weight)
         nn.init.zeros_(self.linear.bias)
 
@@ -62,7 +68,10 @@ class PaceRegressor(nn.Module):
                 f"the pace regressor reads (N, {self.config.text_dim}) caption embeddings, "
                 f"got {tuple(emb.shape)}"
             )
-        return self.linear(emb.to(self.linear.weight.dtype))[:, 0].clamp(0.0, self.config.max_pace)
+        h = emb.to(self.linear.weight.dtype)
+        if self.hidden is not None:
+            h = nn.functional.gelu(self.hidden(h))
+        return self.linear(h)[:, 0].clamp(0.0, self.config.max_pace)
 
     @torch.no_grad()
     def pace(self, emb: torch.Tensor | np.ndarray) -> np.ndarray:
@@ -71,7 +80,9 @@ class PaceRegressor(nn.Module):
         return self(emb).cpu().numpy().astype(np.float64)
 
     def set_weights(self, weight: np.ndarray, bias: float) -> None:
-        """Load a fitted linear map: (text_dim,) weights and a bias."""
+        """Load a fitted linear map (a regressor without a hidden layer): (text_dim,) weights and a bias."""
+        if self.hidden is not None:
+            raise ValueError("set_weights loads a linear map; this pace regressor has a hidden layer")
         weight = np.asarray(weight, np.float32).reshape(1, -1)
         if weight.shape[1] != self.config.text_dim or not np.isfinite(weight).all() or not np.isfinite(bias):
             raise ValueError(

@@ -6,15 +6,20 @@ greedy or top-k decoding collapses to a held pose, as C-T2M reports.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Annotated
 
 import torch
 
 from motion_env.motion.validation import CheckedConfig
 
-__all__ = ["SamplingConfig", "sample_tokens"]
+__all__ = ["SAMPLING_FILE", "SamplingConfig", "load_sampling", "sample_tokens"]
+
+# The sampling settings of a weights folder, as JSON.
+SAMPLING_FILE = "sampling.json"
 
 
 @dataclass
@@ -36,6 +41,18 @@ class SamplingConfig(CheckedConfig):
         super().__post_init__()
         if self.top_p is not None and not 0.0 < self.top_p <= 1.0:
             raise ValueError(f"SamplingConfig.top_p must be in (0, 1] or None, got {self.top_p!r}")
+
+
+def load_sampling(folder: Path) -> SamplingConfig | None:
+    """The sampling settings saved in a weights `folder` (:data:`SAMPLING_FILE`), None without
+    them; a ValueError names the file when they do not make a :class:`SamplingConfig`."""
+    path = folder / SAMPLING_FILE
+    if not path.is_file():
+        return None
+    try:
+        return SamplingConfig(**json.loads(path.read_text()))
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{path}: {exc}") from exc
 
 
 def sample_tokens(

@@ -22,6 +22,12 @@ from motion_env.motion.trajectory import validate_waypoints
 WAYPOINT_FEATURES = 9
 
 
+def step_input_dim(text_proj: int, num_slots: int) -> int:
+    """Width of what the controller reads each frame: the projected caption, the waypoint slots
+    and its own previous step (lateral, forward, turn)."""
+    return text_proj + num_slots * WAYPOINT_FEATURES + 3
+
+
 def to_heading_frame_torch(vec: torch.Tensor, theta: torch.Tensor) -> torch.Tensor:
     """Torch twin of :func:`motion_env.motion.to_heading_frame`: world (..., 2) -> (lateral, forward)."""
     c, s = torch.cos(theta), torch.sin(theta)

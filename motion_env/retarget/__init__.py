@@ -29,7 +29,7 @@ What is where (the stages in the order :func:`retarget` runs them):
 - :mod:`.quality`: the numbers ``scripts/evaluate_retarget.py`` reports; :mod:`.video`: a video
   of a robot clip.
 
-Needs the optional ``mink`` package: ``pip install "motion-env[robots]"``.
+Needs the optional ``mink`` package: ``pip install -c constraints.txt -e ".[robots]"``.
 """
 
 import sys

@@ -4,13 +4,15 @@ The stages, each in its own module:
 
 1. resample the clip to the robot's rate (:func:`motion_env.motion.kinematics.resample`);
 2. scale it onto the robot and turn it into IK targets (:mod:`.ik_goals`);
-3. solve the IK frame by frame, warm-started, the joints' soft ranges as constraints (:mod:`.ik`);
+3. solve the IK frame by frame, warm-started, the joints' soft ranges as constraints, the centre
+   of mass placed horizontally where the human's is, scaled (:mod:`.ik`);
 4. low-pass the result (:mod:`.smoothing`), cap the joint speed and clip every joint into its
    soft range (:mod:`.limits`): the returned clip never leaves it (90 % of each joint's range
    about its centre by default, as mjlab's robots use);
 5. set each frame's root height from the lowest foot geom (:mod:`.floor`): the feet stand on the
    floor while the human's do and lift as high as the human's (scaled) when they leave it, and
-   no geom goes below the floor;
+   no geom goes below the floor; in a flight (both of the human's feet in the air) the centre of
+   mass falls freely (:mod:`.flight`);
 6. measure how far each tracked frame ended from its target (the residuals).
 """
 
@@ -25,6 +27,7 @@ from motion_env.motion.kinematics import resample
 from motion_env.motion.skeleton import FPS
 from motion_env.motion.types import Motion
 from motion_env.motion.validation import check_joints
+from motion_env.retarget.flight import AIR_CLEARANCE, ballistic_lift
 from motion_env.retarget.ik import IKSettings, solve_clip
 from motion_env.retarget.ik_goals import compute_targets
 from motion_env.retarget.limits import SOFT_LIMIT, check_soft_limit, clip_to_limits, limit_speed
@@ -120,6 +123,10 @@ def retarget(
     # Raise or lower each frame so that the feet are where the human's are, but no geom is
     # below the floor (a knee or a hand on the ground wins over the feet).
     lift = np.maximum(targets.floor_height - pose.foot_lowest, -pose.lowest)
+    # In a flight (both of the human's feet off the floor) the centre of mass falls freely.
+    in_air = targets.floor_height >= AIR_CLEARANCE
+    lift += ballistic_lift(pose.com[:, 2] + lift, in_air, fps)
+    lift = np.maximum(lift, -pose.lowest)
     qpos[:, bot.root_qpos + 2] += lift
     frame_positions = pose.frame_positions + lift[:, None, None] * np.array([0.0, 0.0, 1.0])
     tracked = [k for k, task in enumerate(bot.tasks) if task.position_cost > 0]

@@ -3,7 +3,9 @@
 Each frame starts from the previous frame's solution, moved by the change of the root target, and
 takes a few damped QP steps (:func:`mink.solve_ik`, solver daqp) over
 
-- one frame task per tracked robot frame (position and orientation costs from the table),
+- the tracked robot frames, their positions and orientations (costs from the table), and the
+  horizontal place of the centre of mass (:attr:`IKSettings.com_cost`), all one stacked task
+  (:class:`.frame_tasks.FrameTargets`),
 - a posture task pulling every joint lightly towards the home pose (it settles the joints no
   target reaches: wrists, head, the arm's twist),
 
@@ -21,7 +23,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from motion_env.args import install_line
 from motion_env.motion.rotations import quat_from_matrix
+from motion_env.motion.validation import CheckedConfig, NonNegativeFloat, PositiveFloat, PositiveInt
 from motion_env.retarget.collisions import self_collision_pairs
 from motion_env.retarget.ik_goals import Targets
 from motion_env.retarget.limits import SOFT_LIMIT, clip_to_limits
@@ -31,33 +35,27 @@ __all__ = ["FrameSolver", "IKSettings", "solve_clip"]
 
 
 @dataclass(frozen=True)
-class IKSettings:
+class IKSettings(CheckedConfig):
     """How hard the solver works per frame."""
 
-    iterations: int = 4  # QP steps per frame (warm-started)
-    first_iterations: int = 60  # QP steps on the first frame (from the home pose)
-    tolerance: float = 1e-3  # stop a frame early when a step moves the joints less than this (rad)
-    damping: float = 1.0  # Levenberg-Marquardt damping of every step (smaller steps, smoother)
+    iterations: PositiveInt = 4  # QP steps per frame (warm-started)
+    first_iterations: PositiveInt = 60  # QP steps on the first frame (from the home pose)
+    tolerance: PositiveFloat = 1e-3  # stop a frame early when a step moves the joints less (rad)
+    damping: PositiveFloat = 1.0  # Levenberg-Marquardt damping of every step (smaller steps, smoother)
     avoid_self_collision: bool = True  # keep arms off the trunk, thighs, each other; shins apart
-    collision_margin: float = 0.01  # metres the IK keeps between those geoms
-
-    def __post_init__(self) -> None:
-        for name in ("iterations", "first_iterations"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"IKSettings.{name} must be a positive int, got {value!r}")
-        for name in ("tolerance", "damping", "collision_margin"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"IKSettings.{name} must be > 0, got {getattr(self, name)!r}")
+    collision_margin: PositiveFloat = 0.01  # metres the IK keeps between those geoms
+    # Weight of the centre of mass's horizontal place: the human's, scaled (0: not tracked). The
+    # robots' masses are not spread as a human's: the T1's legs and trunk, moving as the human's,
+    # swing its centre of mass 3 times as hard as the human's in a run, more than a foot on the
+    # floor can push (the robot replay's root torque). 20 holds it; see docs/robots.md.
+    com_cost: NonNegativeFloat = 20.0
 
 
 def _mink():
     try:
         import mink
     except ImportError as exc:
-        raise ImportError(
-            'retargeting needs the optional mink package: pip install -c constraints.txt "motion-env[robots]"'
-        ) from exc
+        raise ImportError(f"retargeting needs the optional mink package: {install_line('robots')}") from exc
     return mink
 
 
@@ -76,12 +74,9 @@ class FrameSolver:
         model = robot.soft_model(soft_limit)  # the same kinematics, the soft joint ranges
         self._home = clip_to_limits(model, robot.home.copy())
         self.configuration = mink.Configuration(model)
-        self.tasks = [
-            mink.FrameTask(
-                t.frame, t.type, position_cost=t.position_cost, orientation_cost=t.orientation_cost
-            )
-            for t in robot.tasks
-        ]
+        from motion_env.retarget.frame_tasks import FrameTargets  # needs mink
+
+        self.targets = FrameTargets(robot, settings.com_cost)
         posture = mink.PostureTask(model, cost=robot.table.posture_cost)
         posture.set_target(self._home)
         self.limits = [mink.ConfigurationLimit(model)]
@@ -97,7 +92,7 @@ class FrameSolver:
                     collision_detection_distance=3 * margin,
                 )
             )
-        self.all_tasks = [*self.tasks, posture] if robot.table.posture_cost > 0 else self.tasks
+        self.all_tasks = [self.targets, posture] if robot.table.posture_cost > 0 else [self.targets]
         self.reset()
 
     def reset(self) -> None:
@@ -117,14 +112,9 @@ class FrameSolver:
         else:
             q = self._q
             q[root : root + 3] += targets.root_position[t] - self._root_target
-        # SE3 targets as (w, x, y, z, x, y, z); a task with no position keeps 0 (its cost is 0).
-        poses = np.concatenate(
-            [quat_from_matrix(targets.rotations[t]), np.nan_to_num(targets.positions[t])], axis=-1
-        )
         configuration = self.configuration
         configuration.update(q)
-        for task, pose in zip(self.tasks, poses):
-            task.set_target(mink.SE3(pose))
+        self.targets.set_targets(targets.positions[t], targets.rotations[t], targets.com[t])
         dt = 1.0  # steps are displacements: no time scale
         for _ in range(settings.first_iterations if first else settings.iterations):
             try:

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from motion_env.motion.mass import centre_of_mass
 from motion_env.motion.skeleton import JOINT_INDEX
 from motion_env.replay.humanoid import rest_positions, to_mujoco
 from motion_env.retarget.human import LIMBS, frames, limb_length, rest_relative
@@ -49,6 +50,8 @@ class Targets:
         positions: (T, K, 3) world target of each of the robot's K tasks (NaN: no position).
         rotations: (T, K, 3, 3) world target orientation of each task (identity: none).
         root_position, root_rotation: (T, 3), (T, 3, 3) a first guess of the root body's pose.
+        com: (T, 3) where the robot's centre of mass belongs: the human's, scaled like the root
+            path (its height is not used).
         floor_height: (T,) where the robot's lowest foot point belongs: 0 while the human
             stands, the scaled height of the human's feet above their standing height otherwise.
         leg_scale, arm_scale: robot limb length / human limb length.
@@ -58,6 +61,7 @@ class Targets:
     rotations: np.ndarray
     root_position: np.ndarray
     root_rotation: np.ndarray
+    com: np.ndarray
     floor_height: np.ndarray
     leg_scale: float
     arm_scale: float
@@ -194,6 +198,7 @@ def compute_targets(robot: Robot, joints: np.ndarray, scales: tuple[float, float
         rotations=rotations,
         root_position=mid + turn["pelvis"] @ (robot.rest_root - rest_mid),
         root_rotation=turn["pelvis"],
+        com=leg_scale * centre_of_mass(joints),
         floor_height=np.minimum(heights["left"], heights["right"]),
         leg_scale=leg_scale,
         arm_scale=arm_scale,

@@ -57,11 +57,13 @@ class Kinematics:
         frame_positions: (T, K, 3) world position of each of the robot's K tracked frames.
         foot_lowest: (T,) height of the lowest point of the foot geoms (metres, floor at 0).
         lowest: (T,) height of the lowest point of all the robot's collision geoms.
+        com: (T, 3) the robot's centre of mass.
     """
 
     frame_positions: np.ndarray
     foot_lowest: np.ndarray
     lowest: np.ndarray
+    com: np.ndarray
 
 
 class Robot:
@@ -157,17 +159,21 @@ class Robot:
         geoms = np.concatenate([self.foot_geoms.geoms, self.body_geoms.geoms])
         xpos = np.empty((num_frames, geoms.size, 3))
         xmat = np.empty((num_frames, geoms.size, 9))
+        com = np.empty((num_frames, 3))
         for t in range(num_frames):
             data.qpos[:] = qpos[t]
             mujoco.mj_kinematics(self.model, data)
+            mujoco.mj_comPos(self.model, data)
             frames[t] = [self.frame_position(data, task) for task in self.tasks]
             xpos[t], xmat[t] = data.geom_xpos[geoms], data.geom_xmat[geoms]
+            com[t] = data.subtree_com[self.root]
         feet = self.foot_geoms.geoms.size
         foot_lowest = self.foot_geoms.lowest(xpos[:, :feet], xmat[:, :feet]).min(axis=1)
         return Kinematics(
             frame_positions=frames,
             foot_lowest=foot_lowest,
             lowest=self._lowest(xpos[:, feet:], xmat[:, feet:], foot_lowest),
+            com=com,
         )
 
     def _lowest(self, xpos: np.ndarray, xmat: np.ndarray, foot_lowest: np.ndarray) -> np.ndarray:

@@ -41,7 +41,14 @@ def smooth_qpos(model: mujoco.MjModel, qpos: np.ndarray, sigma_frames: float) ->
         # q and -q are one rotation: flip each to the hemisphere of the previous frame.
         flips = np.cumprod(np.where((q[1:] * q[:-1]).sum(-1) < 0, -1.0, 1.0))
         q[1:] *= flips[:, None]
-    out = gaussian_filter1d(out, sigma_frames, axis=0, mode="nearest")
+    # Extend the clip past each end by its point reflection (2 x_end - x mirrored): a joint or the
+    # root moving at a steady speed keeps it to the last frame. Repeating the end frame ("nearest")
+    # would brake every motion over the last few frames, a force no floor supplies to a runner.
+    pad = min(int(np.ceil(4 * sigma_frames)), out.shape[0] - 1)
+    head = 2 * out[:1] - out[pad:0:-1]
+    tail = 2 * out[-1:] - out[-2 : -pad - 2 : -1]
+    padded = np.concatenate([head, out, tail])
+    out = gaussian_filter1d(padded, sigma_frames, axis=0, mode="nearest")[pad : pad + out.shape[0]]
     for a in quats:
         q = out[:, a : a + 4]
         q /= np.maximum(np.linalg.norm(q, axis=-1, keepdims=True), 1e-12)

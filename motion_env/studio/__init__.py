@@ -11,7 +11,7 @@ What is where:
 - :mod:`.keep`: a clip as .npz, BVH or robot file bytes;
 - :mod:`.robot_view`: the selected character retargeted onto a robot live, and its meshes;
 - :mod:`.server`, :mod:`.view`, :mod:`.panel`: the page, built on viser (the optional ``studio``
-  extra, ``pip install "motion-env[studio]"``), imported only by the command that serves it.
+  extra, ``pip install -c constraints.txt -e ".[studio]"``), imported only by the command that serves it.
 """
 
 from motion_env.studio.session import StudioSession

@@ -11,6 +11,7 @@ import importlib.util
 import tempfile
 from pathlib import Path
 
+from motion_env.args import install_line
 from motion_env.motion.types import Motion
 
 __all__ = ["CLIP_KINDS", "ROBOT_KINDS", "clip_file"]
@@ -48,9 +49,7 @@ def clip_file(motion: Motion, kind: str, name: str, robot: str = ROBOT) -> tuple
             motion.save(path)
             return path.name, path.read_bytes()
     if importlib.util.find_spec("mink") is None:
-        raise ValueError(
-            'a robot file needs the mink package: pip install -c constraints.txt "motion-env[robots]"'
-        )
+        raise ValueError(f"a robot file needs the mink package: {install_line('robots')}")
     from motion_env.retarget import retarget
     from motion_env.retarget.files import FORMATS
 

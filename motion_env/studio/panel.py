@@ -104,7 +104,7 @@ class ControlPanel:
                 SHOW_CHOICES,
                 initial_value=SHOW_CHOICES[0],
                 hint="the character, or the character retargeted onto a robot frame by frame "
-                '(needs the robots extra: pip install "motion-env[robots]")',
+                '(needs the robots extra: pip install -c constraints.txt -e ".[robots]")',
             )
 
     def _add_route(self, gui: viser.GuiApi) -> None:

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
+from motion_env.args import install_line
 from motion_env.replay.humanoid import from_mujoco
 
 if TYPE_CHECKING:  # the session uses this module without viser (the optional studio extra)
@@ -42,9 +43,7 @@ mujoco.mju_mat2Quat(_MJ_TO_SCENE, from_mujoco(np.eye(3)).T.reshape(-1).astype(np
 
 def _needs_mink() -> None:
     if importlib.util.find_spec("mink") is None:
-        raise ValueError(
-            'the robot view needs the mink package: pip install -c constraints.txt "motion-env[robots]"'
-        )
+        raise ValueError(f"the robot view needs the mink package: {install_line('robots')}")
 
 
 @dataclass(frozen=True)

@@ -31,6 +31,7 @@ import torch
 from torch.nn import functional as F
 from tqdm.auto import tqdm
 
+from motion_env.data.dataset import read_index, read_split
 from motion_env.models.classifier import (
     CHECKPOINT_KIND,
     ClassifierConfig,
@@ -89,9 +90,6 @@ def labelled_clips(data_dir: str | Path, split: str) -> list[LabelledClip]:
     Labels come from ``index.csv`` (a mirrored clip's label is already the mirrored one:
     ``Mdataset-2_wave-left-hand_...`` is a ``wave-right-hand``). CMU takes get no style.
     """
-    from motion_env.data.dataset import read_split
-    from motion_env.evaluation.route_following import read_index
-
     data_dir = Path(data_dir)
     index = read_index(data_dir)
     if not index:

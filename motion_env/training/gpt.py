@@ -6,7 +6,9 @@ sequences (a clip drawn in proportion to its length), each with a random caption
 (embeddings computed once, jittered per sample), path features from the clip's own gait-free root
 path, and the null text for a share of samples (classifier-free guidance). Ends with the
 teacher-forced token accuracy and perplexity on the val split (:func:`evaluate_gpt`). The loop,
-the learning-rate schedule and the checkpoints are :mod:`motion_env.training.loop`'s.
+the learning-rate schedule and the checkpoints are :mod:`motion_env.training.loop`'s. With
+``init`` a fresh run fine-tunes a trained GPT (its weights and model config, a new optimizer and
+schedule).
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from motion_env.models.checkpoint import (
     check_text_encoder,
     config_from_dict,
     load_checkpoint,
+    read_checkpoint,
     text_encoder_record,
 )
 from motion_env.models.gpt import GPTConfig, TokenGPT
@@ -47,6 +50,12 @@ class GPTTrainConfig(TrainConfig):
     start_crop: Fraction = 0.3  # share of crops that start at the clip's first token
     text_noise: NonNegativeFloat = 0.3  # expected norm of the noise added to caption embeddings (0: off)
     encoder: str = DEFAULT_TEXT_ENCODER  # text encoder name (motion_env.text.load_text_encoder)
+    init: str | None = None  # GPT checkpoint (packaged ones too) a fresh run starts from: weights, config
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.init is not None and not (isinstance(self.init, str) and self.init.strip()):
+            raise ValueError(f"GPTTrainConfig.init must be a checkpoint path or None, got {self.init!r}")
 
 
 class _TokenSet:
@@ -185,6 +194,9 @@ def train_gpt(
     device = config.device
     vq, vq_ckpt = load_checkpoint(vqvae_path, "vqvae", VQVAEConfig, VQVAE, device)
     config, text_encoder = loop.with_text_encoder(config, text_encoder)
+    init = _init_checkpoint(config, model_config, text_encoder)
+    if init is not None:
+        model_config = config_from_dict(GPTConfig, init["config"])
     model_config = _model_config(model_config, vq, text_encoder)
     normalizer = loop.load_normalizer(data_dir)
     train = _TokenSet(loop.load_split(data_dir, "train"), vq, normalizer, device)
@@ -198,6 +210,8 @@ def train_gpt(
     if ckpt is not None:
         check_text_encoder(ckpt, text_encoder, out_path)
     start = loop.restore(ckpt, model, opt)
+    if ckpt is None and init is not None:
+        model.load_state_dict(init["model"])  # a fine-tune: the weights, a new optimizer and schedule
     rng = np.random.default_rng([config.seed, start])
     save = loop.checkpoint_writer(
         out_path, kind=CHECKPOINT_KIND, model=model, optimizer=opt, settings=config,
@@ -228,6 +242,21 @@ def train_gpt(
     save(result.step, metrics)
     model.train(False)
     return metrics
+
+
+def _init_checkpoint(
+    config: GPTTrainConfig, model_config: GPTConfig | None, text_encoder: TextEncoder
+) -> dict[str, Any] | None:
+    """The ``init`` checkpoint of a fine-tune, checked against the run: the same text encoder and,
+    when one is given, the same model config; None without ``init``."""
+    if config.init is None:
+        return None
+    init = read_checkpoint(config.init, CHECKPOINT_KIND)
+    check_text_encoder(init, text_encoder, config.init)
+    stored = config_from_dict(GPTConfig, init["config"])
+    if model_config is not None and model_config != stored:
+        raise ValueError(f"{config.init}: holds a GPT with {stored}, not the given {model_config}")
+    return init
 
 
 def _model_config(model_config: GPTConfig | None, vq: VQVAE, text_encoder: TextEncoder) -> GPTConfig:

@@ -6,7 +6,8 @@ the takes start and end in motion, so that is the pace of the motion, 0 for gest
 by the models' own text encoder as it is (``--caption-reader none``) and through the weights
 folder's default caption adapter (``caption_adapter.pt``, when it has one), so that the one
 regressor serves either reader. A ridge regression fits the speed on those embeddings (closed
-form, a few seconds once the captions are encoded); the val split says how far off it is.
+form, a few seconds once the captions are encoded), or, with ``hidden`` > 0, AdamW fits a
+regressor with a hidden layer (seconds too); the val split says how far off it is.
 """
 
 from __future__ import annotations
@@ -19,13 +20,14 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
-from motion_env.data.dataset import DatasetClip, read_split
+from motion_env.data.dataset import DatasetClip, read_index, read_split
 from motion_env.models.checkpoint import read_checkpoint, save_checkpoint
 from motion_env.models.pace import PaceConfig, PaceRegressor
 from motion_env.motion.skeleton import FPS
+from motion_env.motion.validation import NonNegativeInt
 from motion_env.training.config import TrainConfig
 
-__all__ = ["PaceTrainConfig", "clip_speed", "fit_ridge", "train_pace"]
+__all__ = ["PaceTrainConfig", "clip_speed", "fit_hidden", "fit_ridge", "train_pace"]
 
 CHECKPOINT_KIND = "pace"
 MIN_FRAMES = 24  # shorter clips are skipped (as the controller's training does)
@@ -37,7 +39,8 @@ class PaceTrainConfig(TrainConfig):
 
     weights: str = "shipped"  # generator weights folder whose controller space and caption adapter are read
     captions_per_clip: int = 3  # captions of each train clip that are fitted (each clip has about 12)
-    alpha: float = 1.0  # ridge penalty (chosen on the val split: 0.1-100 tried)
+    alpha: float = 1.0  # ridge penalty of the linear map (chosen on the val split: 0.1-100 tried)
+    hidden: NonNegativeInt = 0  # width of a hidden layer (0: a linear map, fitted in closed form; else AdamW)
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -60,6 +63,28 @@ def fit_ridge(x: np.ndarray, y: np.ndarray, alpha: float) -> tuple[np.ndarray, f
     xc = x - mu
     w = np.linalg.solve(xc.T @ xc + alpha * np.eye(x.shape[1]), xc.T @ (y - y.mean()))
     return w, float(y.mean() - mu @ w)
+
+
+def fit_hidden(x: np.ndarray, y: np.ndarray, hidden: int, seed: int, steps: int = 1500) -> PaceRegressor:
+    """A pace regressor with a hidden layer of width `hidden`, fitted to `y` (N,) on `x` (N, D) by
+    AdamW on the squared error (batches of 512; a few seconds on one CPU thread)."""
+    torch.manual_seed(seed)
+    model = PaceRegressor(PaceConfig(text_dim=int(x.shape[1]), hidden=hidden))
+    # Start the output layer from the mean speed and small random weights, not from zero (a zero
+    # output layer would give the hidden layer no gradient).
+    torch.nn.init.normal_(model.linear.weight, std=0.01)
+    torch.nn.init.constant_(model.linear.bias, float(np.mean(y)))
+    xt, yt = torch.as_tensor(x, dtype=torch.float32), torch.as_tensor(y, dtype=torch.float32)
+    optimizer = torch.optim.AdamW(model.parameters(), lr=3e-3, weight_decay=1e-3)
+    gen = torch.Generator().manual_seed(seed)
+    for _ in range(steps):
+        idx = torch.randint(0, len(xt), (min(512, len(xt)),), generator=gen)
+        h = torch.nn.functional.gelu(model.hidden(xt[idx]))
+        loss = (model.linear(h)[:, 0] - yt[idx]).pow(2).mean()  # unclipped, so every row has a gradient
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        optimizer.step()
+    return model.eval()
 
 
 def _captions_and_speeds(
@@ -124,7 +149,6 @@ def train_pace(
         Val metrics: mean absolute error (m/s) per reader (``mae_none``, ``mae_adapter``) and the
         mean predicted and real pace of the val runs and walks (``run_pred``, ``run_real``, ...).
     """
-    from motion_env.evaluation.route_following import read_index
     from motion_env.generation.generator import DEFAULT_WEIGHTS
 
     config = config or PaceTrainConfig()
@@ -140,9 +164,13 @@ def train_pace(
     texts, speeds = _captions_and_speeds(read_split(Path(data_dir), "train"), config.captions_per_clip, rng)
     tqdm.write(f"pace: {len(texts)} train captions, {len(adapters)} reader(s)")
     train_x = _embed(encoder, adapters, texts)
-    weight, bias = fit_ridge(np.concatenate(train_x), np.tile(speeds, len(train_x)), config.alpha)
-    model = PaceRegressor(PaceConfig(text_dim=int(train_x[0].shape[1])))
-    model.set_weights(weight, bias)
+    x, y = np.concatenate(train_x), np.tile(speeds, len(train_x))
+    if config.hidden:
+        model = fit_hidden(x, y, config.hidden, config.seed)
+    else:
+        weight, bias = fit_ridge(x, y, config.alpha)
+        model = PaceRegressor(PaceConfig(text_dim=int(train_x[0].shape[1])))
+        model.set_weights(weight, bias)
 
     val_clips = read_split(Path(data_dir), "val")
     index = read_index(Path(data_dir))

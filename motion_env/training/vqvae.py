@@ -9,7 +9,8 @@ learning-rate schedule and the checkpoints are :mod:`motion_env.training.loop`'s
 Fine-tuning the decoder alone (``init`` = a trained VQ-VAE, ``freeze_encoder``): the encoder and
 the codebook stay as they are, so every clip keeps its tokens and a body GPT trained on them stays
 valid, while extra losses on the differences of the decoded joint positions (``vel_weight``,
-``acc_weight``, ``jerk_weight``) teach the decoder to stop rippling at the token rate.
+``acc_weight``, ``jerk_weight``) teach the decoder to stop rippling at the token rate;
+``ripple_weight`` aims at that ripple alone (:func:`token_ripple`).
 """
 
 from __future__ import annotations
@@ -46,6 +47,7 @@ class VQVAETrainConfig(TrainConfig):
     vel_weight: NonNegativeFloat = 0.0  # L1 loss on frame-to-frame changes of root-relative joint positions
     acc_weight: NonNegativeFloat = 0.0  # L1 loss on their second differences (acceleration)
     jerk_weight: NonNegativeFloat = 0.0  # L1 loss on their third differences (jerk)
+    ripple_weight: NonNegativeFloat = 0.0  # L1 loss on the token-periodic part of the acceleration error
     smooth_joints: str = "all"  # joints those losses apply to: "all", or "upper" (spine, head, arms)
 
     def __post_init__(self) -> None:
@@ -71,15 +73,40 @@ SMOOTH_JOINTS = {
 }
 
 
-def derivative_losses(recon: torch.Tensor, target: torch.Tensor, config: VQVAETrainConfig) -> dict:
+def token_ripple(error: torch.Tensor, rate: int) -> torch.Tensor:
+    """The part of a per-frame error that repeats once per token: (B, rate, C).
+
+    Args:
+        error: (B, T, C), frame t of the window at phase t % rate of its token (windows start
+            on a token boundary).
+        rate: frames per token.
+
+    Returns:
+        the error averaged over the window's tokens at each phase, less its mean over phases:
+        what a decoder that stalls towards each token's end and catches up at the next adds,
+        while an error shared by all phases is left to the other losses (a slow drift leaks in
+        by no more than it changes within one token).
+    """
+    whole = error.shape[1] // rate * rate
+    if whole == 0:
+        raise ValueError(f"token_ripple: {error.shape[1]} frames, fewer than one token of {rate}")
+    per_phase = error[:, :whole].reshape(error.shape[0], whole // rate, rate, -1).mean(dim=1)
+    return per_phase - per_phase.mean(dim=1, keepdim=True)
+
+
+def derivative_losses(
+    recon: torch.Tensor, target: torch.Tensor, config: VQVAETrainConfig, rate: int = 4
+) -> dict:
     """L1 losses on the 1st/2nd/3rd frame differences of the root-relative joint positions.
 
     Args:
-        recon, target: (B, T, 263) normalised features.
+        recon, target: (B, T, 263) normalised features, T starting on a token boundary.
         config: the weights; a term whose weight is 0 is not computed.
+        rate: frames per token (for ``ripple_weight``).
 
     Returns:
-        {"vel_l1", "acc_l1", "jerk_l1"} (those with a weight) and "smooth": their weighted sum.
+        {"vel_l1", "acc_l1", "jerk_l1", "ripple_l1"} (those with a weight) and "smooth": their
+        weighted sum.
     """
     # One Std for all RIC channels (HumanML3D's grouped statistics), so differences of the
     # normalised channels are the joints' differences in one scale. They are far below 1, where
@@ -95,6 +122,12 @@ def derivative_losses(recon: torch.Tensor, target: torch.Tensor, config: VQVAETr
         if weight > 0:
             terms[name] = (torch.diff(pred, n=order, dim=1) - torch.diff(true, n=order, dim=1)).abs().mean()
             total = total + weight * terms[name]
+    if config.ripple_weight > 0:
+        # acc_error[:, k] is centred on frame k + 1: dropping the first rate - 1 puts a token
+        # boundary (frame rate) at phase 0.
+        acc_error = torch.diff(pred, n=2, dim=1) - torch.diff(true, n=2, dim=1)
+        terms["ripple_l1"] = token_ripple(acc_error[:, rate - 1 :], rate).abs().mean()
+        total = total + config.ripple_weight * terms["ripple_l1"]
     return {**terms, "smooth": total}
 
 
@@ -246,7 +279,7 @@ def train_vqvae(
         offs = (rng.random(config.batch_size) * lengths[idx]).astype(int)
         x = torch.stack([feats[i][o : o + window] for i, o in zip(idx, offs, strict=True)]).to(device)
         recon, _, losses = model(x)
-        extra = derivative_losses(recon, x, config)
+        extra = derivative_losses(recon, x, config, model.rate)
         losses["loss"] = losses["loss"] + extra.pop("smooth")
         opt.zero_grad(set_to_none=True)
         losses["loss"].backward()

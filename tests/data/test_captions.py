@@ -13,6 +13,7 @@ from motion_env.data.captions import (
     BANDAI_CONTENTS,
     BANDAI_STYLES,
     ClipLabels,
+    canonical_style,
     caption_tokens,
     captions_for,
     captions_for_bandai,
@@ -170,4 +171,6 @@ def test_phrase_tables_are_well_formed() -> None:
         assert style.adverbs and style.phrases and (style.adjectives or style.neutral), label
     for alias, label in [("old", "elderly"), ("tired", "exhausted"), ("children", "childish")]:
         assert BANDAI_STYLES[alias] is BANDAI_STYLES[label]
+        assert canonical_style(alias) == canonical_style(label) == label
+    assert canonical_style("exhausted") == "exhausted" and canonical_style("gliding") == "gliding"
     assert {"walk", "run", "wave-right-hand", "dance-short"} <= set(BANDAI_CONTENTS)

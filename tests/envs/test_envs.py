@@ -467,3 +467,27 @@ def test_info_carries_the_caption_warning(gen) -> None:
     with pytest.warns(UserWarning, match="not in the Latin script"):
         _, infos = envs.reset(seed=0, options={"text": "一个人在走路"})
     assert infos["caption_warning"].shape == (2,) and all("Latin" in w for w in infos["caption_warning"])
+
+
+def test_lookahead_argument_selects_the_streams_look_ahead(gen):
+    from motion_env.models.lookahead import LookaheadConfig, LookaheadHead
+
+    c = gen.pipeline.controller.config
+    with pytest.raises(ValueError, match="lookahead"):
+        _make(gen, lookahead="fast")
+    with pytest.raises(ValueError, match="lookahead must be 'exact' or 'head'"):
+        _make(gen, lookahead="head").reset(seed=0)  # these weights have no head
+    gen.pipeline.lookahead = LookaheadHead(
+        LookaheadConfig(hidden=c.hidden, text_proj=c.text_proj, width=8, layers=1)
+    )
+    try:
+        modes = {}
+        for mode in ("auto", "head", "exact"):
+            env = _make(gen, lookahead=mode, frames_per_step=1, follow_action=False)
+            env.reset(seed=0)
+            modes[mode] = env.unwrapped._batch.stream.lookahead
+            env.step(np.array([0.5, 0.5], np.float32))  # a new target: the head predicts the second ahead
+            env.close()
+        assert modes == {"auto": "head", "head": "head", "exact": "exact"}
+    finally:
+        gen.pipeline.lookahead = None

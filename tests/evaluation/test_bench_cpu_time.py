@@ -45,3 +45,26 @@ def test_table_prints_both_equivalents() -> None:
     text = bench.format_results(results)
     assert "cpu equiv." in text and "180.0" in text and "150.0" in text
     assert "calibration 40-40 ms of CPU" in text
+
+
+def test_exact_look_ahead_is_timed_beside_the_head(random_generator) -> None:
+    """With a look-ahead head the learner is also timed with the exact look-ahead (before/after in
+    one run), and the table prints both."""
+    assert bench.bench_agents(random_generator) == ["route", "learner"]
+    random_generator.pipeline.lookahead = object()  # any head
+    try:
+        assert bench.bench_agents(random_generator) == ["route", "learner", "learner_exact"]
+    finally:
+        random_generator.pipeline.lookahead = None
+    env = {"median": 1.0, "p99": 9.0, "steps_per_s": 100.0, "calibration_ms": 32.0}
+    results = {
+        "model": "m", "untrained": False, "device": "cpu",
+        "hardware": {"cpu": "x86_64", "cpu_count": 2, "torch_threads": 1},
+        "clip_latency_ms": {"median": 1.0, "p90": 1.0, "runs": 1, "frames": 200},
+        "stream": [], "stream_lookahead_frames": 20, "control_delay_frames": 4,
+        "env_step_ms_learner": env, "env_step_ms_learner_exact": {**env, "steps_per_s": 50.0},
+        "vector_env": [{"num_envs": 64, "frames_per_s": 900.0, "agent": "learner_exact"}],
+    }  # fmt: skip
+    text = bench.format_results(results)
+    assert "env steps/s, new target each step, exact look-ahead" in text
+    assert "vector env, N=64, new targets, exact look-ahead" in text

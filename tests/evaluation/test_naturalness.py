@@ -14,6 +14,7 @@ from motion_env.evaluation.metrics import diversity, frechet_distance, joint_acc
 from motion_env.evaluation.naturalness import (
     NaturalnessSettings,
     evaluate_naturalness,
+    mix_weights,
     naturalness_takes,
     travel_waypoints,
 )
@@ -102,6 +103,46 @@ def test_smoothness_and_distribution_metrics() -> None:
     assert diversity(np.array([[0.0, 0.0], [3.0, 4.0]])) == 5.0
     with pytest.raises(ValueError, match="N >= 2"):
         frechet_distance(a[:1], a)
+
+
+def test_weights_resample_the_reference() -> None:
+    rng = np.random.default_rng(1)
+    a, b = rng.normal(size=(40, 3)), rng.normal(size=(60, 3)) + 1.0
+    # Equal weights change nothing; a zero weight drops the row; integer weights repeat rows.
+    assert frechet_distance(a, b, np.full(60, 7.0)) == pytest.approx(frechet_distance(a, b))
+    half = np.r_[np.ones(30), np.zeros(30)]
+    assert frechet_distance(a, b, half) == pytest.approx(frechet_distance(a, b[:30]))
+    assert diversity(b, half) == pytest.approx(diversity(b[:30]))
+    assert diversity(b, np.ones(60)) == pytest.approx(diversity(b))
+    twice = np.r_[np.full(30, 2.0), np.ones(30)]
+    repeated = np.concatenate([b[:30], b])
+    mean_gap = (repeated.mean(0) - a.mean(0)) @ (repeated.mean(0) - a.mean(0))
+    weighted_gap = ((twice @ b) / twice.sum() - a.mean(0)) @ ((twice @ b) / twice.sum() - a.mean(0))
+    assert weighted_gap == pytest.approx(mean_gap)
+    with pytest.raises(ValueError, match=r"weights must be \(60,\)"):
+        frechet_distance(a, b, np.ones(59))
+    with pytest.raises(ValueError, match="not all 0"):
+        diversity(b, np.zeros(60))
+
+
+def test_mix_weights_give_each_action_its_clips_share() -> None:
+    # 2 clips of an action with 8 takes, 2 of one with 2 takes: each action weighs 2 in all.
+    w = mix_weights([2, 2], [8, 2])
+    assert w.tolist() == [0.25] * 8 + [1.0] * 2
+    with pytest.raises(ValueError, match=">= 1 take per action"):
+        mix_weights([2], [0])
+
+
+def test_the_real_takes_themselves_score_near_zero_whatever_the_mix() -> None:
+    """Clips that are the real takes, 2 of each action, against every take: the weighted reference
+    has the clips' mix; unweighted, the frequent action dominates the reference and the distance."""
+    rng = np.random.default_rng(2)
+    rare = rng.normal(size=(4, 2)) + [6.0, 0.0]
+    common = rng.normal(size=(96, 2))
+    real = np.concatenate([rare, common])
+    clips = np.concatenate([rare[:2], common[:2]])
+    weighted = frechet_distance(clips, real, mix_weights([2, 2], [4, 96]))
+    assert weighted < 0.25 * frechet_distance(clips, real)
 
 
 @pytest.mark.parametrize(

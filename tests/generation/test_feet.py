@@ -5,7 +5,15 @@ from __future__ import annotations
 import numpy as np
 
 from motion_env.evaluation.metrics import joint_acceleration
-from motion_env.generation.feet import FOOT_BLEND, LEGS, FootPinner, release_fade, soft_reach
+from motion_env.generation.feet import (
+    FOOT_BLEND,
+    LEGS,
+    TOE_HINT_LENGTH,
+    FootPinner,
+    release_fade,
+    soft_reach,
+    two_bone_ik,
+)
 from motion_env.generation.recompose import ARMS, on_bone_lengths
 from motion_env.motion.kinematics import bone_lengths, with_bone_lengths
 from motion_env.motion.skeleton import BONE_LENGTHS, PARENTS, RAW_OFFSETS
@@ -77,6 +85,42 @@ def test_a_pin_the_body_leaves_behind_does_not_snap_the_knee() -> None:
     np.testing.assert_allclose(
         bone_lengths(out)[:, [knee, ankle]], bone_lengths(joints)[:, [knee, ankle]], atol=1e-5
     )
+
+
+def _leg(knee_out: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(1, 3) hip, knee, ankle of a leg hanging down, its knee 10 cm forward and `knee_out` m out."""
+    hip = np.array([[0.1, 0.9, 0.0]])
+    knee = np.array([[0.1 + knee_out, 0.5, 0.1]])
+    ankle = np.array([[0.1, 0.1, 0.0]])
+    return hip, knee, ankle
+
+
+def test_the_knee_keeps_its_side_when_the_leg_swings_far() -> None:
+    """A target far ahead of the ankle (a pin the body dragged far) turns the leg by 60 degrees:
+    the knee's bend turns with it, so it stays mostly forward instead of going sideways."""
+    hip, knee, ankle = _leg(0.02)
+    target = hip + 0.75 * np.array([[0.0, -np.cos(np.radians(60)), np.sin(np.radians(60))]])
+    new_knee, new_ankle = two_bone_ik(hip, knee, ankle, target)
+    np.testing.assert_allclose(new_ankle, target, atol=1e-6)
+    u = (target - hip) / np.linalg.norm(target - hip)
+    side = (new_knee - hip) - ((new_knee - hip) * u).sum() * u
+    assert abs(side[0, 0]) < 0.3 * np.linalg.norm(side)  # decoded: 2 cm out of a 10 cm bend
+    assert side[0, 1] > 0.0  # forward of the turned leg is up and ahead
+
+
+def test_a_short_toe_hint_barely_moves_the_knee() -> None:
+    """A foot pointing down has a short horizontal toe direction: noise, which must not swing the
+    knee sideways (given its whole weight it did, 4 cm in a frame at toe-off)."""
+    hip, knee, ankle = _leg(0.0)
+    target = ankle + np.array([[0.0, 0.02, 0.05]])
+    plain, _ = two_bone_ik(hip, knee, ankle, target)
+    short = np.array([[0.01, 0.0, 0.0]])  # 1 cm sideways
+    hinted, _ = two_bone_ik(hip, knee, ankle, target, short, hint_length=TOE_HINT_LENGTH)
+    loud, _ = two_bone_ik(hip, knee, ankle, target, short)
+    assert np.linalg.norm(hinted - plain) < 0.25 * np.linalg.norm(loud - plain)
+    # A flat foot's full-length hint still bends the knee its way.
+    full, _ = two_bone_ik(hip, knee, ankle, target, 10 * short, hint_length=TOE_HINT_LENGTH)
+    np.testing.assert_allclose(full, loud, atol=1e-9)
 
 
 def test_the_pinner_given_tokens_equals_the_whole_clip() -> None:

@@ -7,11 +7,9 @@ import pytest
 
 from motion_env.generation.feet import LEGS, two_bone_ik
 from motion_env.generation.ground import (
-    COM_WEIGHTS,
     FLAT_ANKLE_HEIGHT,
     SWING_CLEARANCE,
     SWING_RISE,
-    centre_of_mass,
     sole_heights,
     swing_clearance,
 )
@@ -22,6 +20,7 @@ from motion_env.generation.physics import (
     apply_physics,
     plan_heights,
 )
+from motion_env.motion.mass import centre_of_mass
 from motion_env.motion.skeleton import BONE_LENGTHS, FOOT_CONTACT, FPS, PARENTS, RAW_OFFSETS
 
 DT2 = 1.0 / FPS**2
@@ -71,23 +70,6 @@ def _streamed(joints: np.ndarray, contacts: np.ndarray, rate: int = 4) -> np.nda
     return np.concatenate(
         [stage.apply(0, joints[f : f + rate], contacts[f : f + rate]) for f in range(0, len(joints), rate)]
     )
-
-
-def test_centre_of_mass_moves_with_the_body() -> None:
-    assert COM_WEIGHTS.sum() == pytest.approx(1.0)
-    joints = _standing(3).astype(np.float64)
-    shifted = joints + np.array([0.3, -0.2, 1.0])
-    np.testing.assert_allclose(centre_of_mass(shifted), centre_of_mass(joints) + [0.3, -0.2, 1.0], atol=1e-12)
-
-
-def test_centre_of_mass_is_the_replays(humanml3d_sample) -> None:
-    from motion_env.motion.types import Motion
-    from motion_env.replay import measure
-    from motion_env.replay.humanoid import to_mujoco
-
-    joints, _ = humanml3d_sample
-    replayed = measure(Motion(joints=joints[:40], fps=FPS)).com
-    np.testing.assert_allclose(to_mujoco(centre_of_mass(joints[:40])), replayed, atol=0.005)
 
 
 def test_a_body_standing_on_the_floor_is_left_as_it_is() -> None:

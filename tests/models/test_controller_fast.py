@@ -19,10 +19,7 @@ TINY = ControllerConfig(text_dim=16, text_proj=8, hidden=32, mlp=32)
 
 def _tiny(seed: int = 0, scale: float = 0.5) -> PathController:
     torch.manual_seed(seed)
-    model = PathController(TINY)
-    for p in model.out[-1].parameters():
-        torch.nn.init.normal_(p, std=scale)
-    return model.eval()
+    return PathController.drifting(TINY, scale).eval()
 
 
 # ---------------------------------------------------------------------------------- the reference

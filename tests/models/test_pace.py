@@ -27,3 +27,16 @@ def test_bad_settings_and_inputs_say_what_is_wrong() -> None:
         model.pace(np.zeros((2, 5)))
     with pytest.raises(ValueError, match="finite"):
         model.set_weights(np.full(4, np.nan), 0.0)
+
+
+def test_a_hidden_layer_is_optional_and_set_weights_is_for_the_linear_map_only() -> None:
+    linear = PaceRegressor(PaceConfig(text_dim=4))
+    assert linear.hidden is None  # the shipped pace.pt: a linear map, as its config says
+    model = PaceRegressor(PaceConfig(text_dim=4, hidden=3, max_pace=2.0))
+    with torch.no_grad():
+        model.linear.bias.fill_(9.0)
+    np.testing.assert_allclose(model.pace(np.zeros((2, 4), np.float32)), [2.0, 2.0])  # clipped
+    with pytest.raises(ValueError, match="hidden layer"):
+        model.set_weights(np.zeros(4), 0.0)
+    with pytest.raises(ValueError, match="hidden"):
+        PaceConfig(hidden=-1)

@@ -52,7 +52,8 @@ def test_cli_reports_a_bad_file(tmp_path: Path, capsys) -> None:
 
 def test_strict_exits_1_unless_plausible(tmp_path: Path, standing_clip, capsys) -> None:
     still = standing_clip(1.5).save(tmp_path / "still.npz")
-    raised = corruptions.raised(standing_clip(1.5), seconds=0.5, start=10).save(tmp_path / "raised.npz")
+    # longer than a jump's flight (retarget.flight.MAX_FLIGHT): a shorter lift is retargeted as a jump
+    raised = corruptions.raised(standing_clip(1.5), seconds=1.0, start=10).save(tmp_path / "raised.npz")
     short = standing_clip(0.5).save(tmp_path / "short.npz")
     assert main(["replay", str(still), "--strict"]) == 0
     assert "verdict: PLAUSIBLE" in capsys.readouterr().out
@@ -84,7 +85,8 @@ def test_refuses_to_replace_a_video(tmp_path: Path, standing_clip, capsys) -> No
 def test_robot_replay_judges_the_retargeted_clip(tmp_path: Path, standing_clip, capsys) -> None:
     pytest.importorskip("mink", reason="the optional 'robots' extra (mink) is not installed")
     still = standing_clip(1.5).save(tmp_path / "still.npz")
-    raised = corruptions.raised(standing_clip(1.5), seconds=0.5, start=10).save(tmp_path / "raised.npz")
+    # longer than a jump's flight (retarget.flight.MAX_FLIGHT): a shorter lift is retargeted as a jump
+    raised = corruptions.raised(standing_clip(1.5), seconds=1.0, start=10).save(tmp_path / "raised.npz")
     assert main(["replay", str(still), "--robot", "unitree_g1", "--strict"]) == 0
     out = capsys.readouterr().out
     assert "verdict: PLAUSIBLE" in out and "joint_limits" in out and "self_collision" in out

@@ -28,7 +28,7 @@ CHROMIUM = (
 def browser_missing() -> str | None:
     """Why the browser tests cannot run here, or None."""
     if importlib.util.find_spec("viser") is None:
-        return 'viser is not installed (pip install -c constraints.txt "motion-env[studio]")'
+        return 'viser is not installed (pip install -c constraints.txt -e ".[studio]")'
     if importlib.util.find_spec("playwright") is None:
         return "playwright is not installed (pip install playwright; the browser is the system's chromium)"
     if CHROMIUM is None:

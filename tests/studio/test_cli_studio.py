@@ -51,7 +51,7 @@ def test_without_viser_the_error_names_the_extra(capsys, monkeypatch) -> None:
         importlib.util, "find_spec", lambda name, *a: None if name == "viser" else find_spec(name, *a)
     )
     assert main(["studio", "--no-browser"]) == 2
-    assert 'pip install -c constraints.txt "motion-env[studio]"' in _error(capsys)
+    assert 'pip install -c constraints.txt -e ".[studio]"' in _error(capsys)
 
 
 def _children(pid: int) -> list[int]:

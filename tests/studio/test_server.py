@@ -10,9 +10,7 @@ import urllib.request
 import numpy as np
 import pytest
 
-pytest.importorskip(
-    "viser", reason='the studio needs viser: pip install -c constraints.txt "motion-env[studio]"'
-)
+pytest.importorskip("viser", reason='the studio needs viser: pip install -c constraints.txt -e ".[studio]"')
 
 
 def port_is_free(port: int) -> bool:

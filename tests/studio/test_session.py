@@ -151,7 +151,7 @@ def test_robot_files_in_every_format(generator, tmp_path) -> None:
 
 
 def test_the_robot_view_poses_every_body_every_frame(generator) -> None:
-    pytest.importorskip("mink", reason='the robot view needs mink: "motion-env[robots]"')
+    pytest.importorskip("mink", reason='the robot view needs mink: -e ".[robots]"')
     session = StudioSession(generator, ["a person walks forward", "a person waves"], seed=0)
     assert session.snapshot().robot is None
     session.set_robot("unitree_g1", index=1)

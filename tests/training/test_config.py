@@ -74,12 +74,12 @@ def test_defaults_are_the_trainers_defaults() -> None:
         "seed": 0, "device": "cpu", "resume": True, "log_every": 50, "save_every": 250, "eval_every": 0,
         "max_minutes": math.inf, "progress": True, "steps": 3000, "batch_size": 64, "lr": 4e-4, "window": 64,
         "init": None, "freeze_encoder": False, "vel_weight": 0.0, "acc_weight": 0.0, "jerk_weight": 0.0,
-        "smooth_joints": "all",
+        "ripple_weight": 0.0, "smooth_joints": "all",
     }  # fmt: skip
     assert GPTTrainConfig().to_dict() == {
         "seed": 0, "device": "cpu", "resume": True, "log_every": 50, "save_every": 100, "eval_every": 0,
         "max_minutes": math.inf, "progress": True, "steps": 1500, "batch_size": 64, "lr": 3e-4,
-        "text_drop": 0.1, "start_crop": 0.3, "text_noise": 0.3, "encoder": "minilm+sides",
+        "text_drop": 0.1, "start_crop": 0.3, "text_noise": 0.3, "encoder": "minilm+sides", "init": None,
     }  # fmt: skip
     assert ControllerTrainConfig().to_dict() == {
         "seed": 0, "device": "cpu", "resume": True, "log_every": 25, "save_every": 50, "eval_every": 0,

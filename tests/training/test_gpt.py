@@ -59,3 +59,37 @@ def test_train_gpt_is_seeded_and_checks_the_text_width(
     wide = GPTConfig(block_size=8, n_layer=1, n_head=2, n_embd=16, text_dim=16)
     with pytest.raises(ValueError, match="text_dim=16"):
         train_gpt(tiny_dataset, vqvae, tmp_path / "c.pt", config, wide, hash_text())
+
+
+def test_fine_tune_starts_from_the_init_weights(
+    tiny_dataset: Path, vqvae: Path, tmp_path: Path, hash_text: Callable[..., TextEncoder]
+) -> None:
+    import torch
+
+    fast = dict(batch_size=4, progress=False)
+    base = tmp_path / "base.pt"
+    train_gpt(tiny_dataset, vqvae, base, GPTTrainConfig(steps=4, **fast), TINY_GPT, hash_text())
+    # A step at a learning rate of ~0 leaves the init's weights; the model config comes from it.
+    tuned = tmp_path / "tuned.pt"
+    train_gpt(
+        tiny_dataset,
+        vqvae,
+        tuned,
+        GPTTrainConfig(steps=1, lr=1e-12, init=str(base), **fast),
+        None,
+        hash_text(),
+    )
+    a, _ = load_checkpoint(base, "gpt", GPTConfig, TokenGPT)
+    b, ckpt = load_checkpoint(tuned, "gpt", GPTConfig, TokenGPT)
+    assert b.config == a.config and ckpt["step"] == 1 and ckpt["settings"]["init"] == str(base)
+    for (name, x), y in zip(a.state_dict().items(), b.state_dict().values(), strict=True):
+        torch.testing.assert_close(x, y, atol=1e-6, rtol=0, msg=name)
+    with pytest.raises(ValueError, match="trained with text encoder 'hash'"):
+        train_gpt(tiny_dataset, vqvae, tmp_path / "x.pt", GPTTrainConfig(steps=1, init=str(base), **fast),
+                  None, hash_text("other"))  # fmt: skip
+    other = GPTConfig(block_size=8, n_layer=2, n_head=2, n_embd=16, text_dim=8)
+    with pytest.raises(ValueError, match="holds a GPT with"):
+        train_gpt(tiny_dataset, vqvae, tmp_path / "y.pt", GPTTrainConfig(steps=1, init=str(base), **fast),
+                  other, hash_text())  # fmt: skip
+    with pytest.raises(ValueError, match="GPTTrainConfig.init"):
+        GPTTrainConfig(init=" ")

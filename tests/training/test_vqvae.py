@@ -12,7 +12,7 @@ from motion_env.data.dataset import load_stats
 from motion_env.models.checkpoint import load_checkpoint, read_checkpoint, save_checkpoint
 from motion_env.models.normalizer import Normalizer
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
-from motion_env.training.vqvae import VQVAETrainConfig, train_vqvae
+from motion_env.training.vqvae import VQVAETrainConfig, derivative_losses, token_ripple, train_vqvae
 
 TINY_VQ = VQVAEConfig(width=16, code_dim=8, codebook_size=16, depth=1)
 FAST = dict(batch_size=4, window=32, progress=False)
@@ -82,9 +82,9 @@ def test_decoder_fine_tuning_keeps_encoder_codebook_and_stats(tiny_dataset: Path
     init = _packaged_init(tmp_path / "init.pt", mean + 0.5, std * 2.0)
     out = tmp_path / "fine.pt"
     smooth = dict(init=str(tmp_path / "init.pt"), freeze_encoder=True, vel_weight=0.5, acc_weight=1.0)
-    config = VQVAETrainConfig(steps=3, lr=1e-2, jerk_weight=0.5, **smooth, **FAST)
+    config = VQVAETrainConfig(steps=3, lr=1e-2, jerk_weight=0.5, ripple_weight=1.0, **smooth, **FAST)
     metrics = train_vqvae(tiny_dataset, out, config)
-    for term in ("loss", "recon", "vel_l1", "acc_l1", "jerk_l1"):
+    for term in ("loss", "recon", "vel_l1", "acc_l1", "jerk_l1", "ripple_l1"):
         assert np.isfinite(metrics[term]) and metrics[term] > 0, term
     tuned, ckpt = load_checkpoint(out, "vqvae", VQVAEConfig, VQVAE)
     before, after = init.state_dict(), tuned.state_dict()
@@ -103,9 +103,40 @@ def test_decoder_fine_tuning_keeps_encoder_codebook_and_stats(tiny_dataset: Path
         train_vqvae(tiny_dataset, out, VQVAETrainConfig(steps=5, init=smooth["init"], **FAST))
 
 
+def test_token_ripple_keeps_only_the_token_periodic_error() -> None:
+    t = torch.arange(24, dtype=torch.float32)
+    ripple = torch.tensor([0.0, 0.0, -1.0, 1.0]).repeat(6)[None, :, None]
+    assert torch.allclose(
+        token_ripple(ripple + 0.3, 4)[0, :, 0], torch.tensor([0.0, 0.0, -1.0, 1.0]), atol=1e-6
+    )
+    # A slow drift leaks in by no more than it changes within one token.
+    slow = (0.01 * t)[None, :, None]
+    assert token_ripple(slow, 4).abs().max() <= 0.015 + 1e-6
+    # A partial last token is left out rather than folded onto the wrong phases.
+    assert token_ripple(ripple[:, :23], 4).shape == (1, 4, 1)
+    with pytest.raises(ValueError, match="fewer than one token"):
+        token_ripple(ripple[:, :3], 4)
+
+
+def test_ripple_loss_sees_a_stalling_decoder_and_not_a_smooth_one() -> None:
+    # A hand moving at constant speed, decoded with a stall at each token's end (lagging then
+    # catching up at the boundary), against one decoded with a steady offset.
+    t = torch.arange(48, dtype=torch.float32)
+    target = torch.zeros(1, 48, 263)
+    target[..., 4:] = 0.05 * t[None, :, None]
+    stall = target.clone()
+    stall[:, 3::4, 4:] -= 0.02
+    offset = target + 0.01
+    config = VQVAETrainConfig(ripple_weight=1.0)
+    assert derivative_losses(stall, target, config)["ripple_l1"] > 1e-3
+    assert derivative_losses(offset, target, config)["ripple_l1"] < 1e-6
+
+
 def test_smoothness_options_are_checked() -> None:
     with pytest.raises(ValueError, match="acc_weight"):
         VQVAETrainConfig(acc_weight=-1.0)
+    with pytest.raises(ValueError, match="ripple_weight"):
+        VQVAETrainConfig(ripple_weight=-1.0)
     with pytest.raises(ValueError, match="init"):
         VQVAETrainConfig(init=" ")
     with pytest.raises(ValueError, match="freeze_encoder"):

@@ -26,7 +26,13 @@ What is where:
 - ``phrases/*.json``: the phrase tables (:mod:`.phrases` says which file holds what).
 """
 
-from motion_env.data.captions.bandai import BANDAI_CONTENTS, BANDAI_STYLES, Style, captions_for_bandai
+from motion_env.data.captions.bandai import (
+    BANDAI_CONTENTS,
+    BANDAI_STYLES,
+    Style,
+    canonical_style,
+    captions_for_bandai,
+)
 from motion_env.data.captions.cmu import (
     captions_for_description,
     description_label,
@@ -54,6 +60,7 @@ __all__ = [
     "VERBS",
     "ClipLabels",
     "Style",
+    "canonical_style",
     "caption_tokens",
     "captions_for",
     "captions_for_bandai",

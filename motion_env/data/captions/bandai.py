@@ -18,7 +18,8 @@ waves both hands, call beckons.
 from __future__ import annotations
 
 import random
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
+from dataclasses import dataclass
 
 from motion_env.data.captions.cmu import description_verb_phrases
 from motion_env.data.captions.grammar import article, gerund, inflect, third_person
@@ -27,6 +28,7 @@ from motion_env.data.captions.sentences import DEFAULT_NUM_CAPTIONS, PEOPLE, dra
 from motion_env.text.mirror import mirror_caption
 
 
+@dataclass(frozen=True)
 class Style:
     """How one style label can be said: adjectives for the person, adverbs, phrases, subjects.
 
@@ -38,19 +40,16 @@ class Style:
         neutral: a "normal" style: half of its captions carry no style words at all.
     """
 
-    def __init__(
-        self,
-        adjectives: Sequence[str],
-        adverbs: Sequence[str],
-        phrases: Sequence[str],
-        subjects: Sequence[str] = (),
-        neutral: bool = False,
-    ) -> None:
-        self.adjectives = tuple(adjectives)
-        self.adverbs = tuple(adverbs)
-        self.phrases = tuple(phrases)
-        self.subjects = tuple(subjects)
-        self.neutral = neutral
+    adjectives: tuple[str, ...]
+    adverbs: tuple[str, ...]
+    phrases: tuple[str, ...]
+    subjects: tuple[str, ...] = ()
+    neutral: bool = False
+
+    def __post_init__(self) -> None:
+        # The phrase tables are JSON lists; a style is kept immutable.
+        for name in ("adjectives", "adverbs", "phrases", "subjects"):
+            object.__setattr__(self, name, tuple(getattr(self, name)))
 
 
 def _load_styles() -> dict[str, Style]:
@@ -73,6 +72,14 @@ BANDAI_CONTENTS.update(
     )
 )
 BANDAI_STYLES: dict[str, Style] = _load_styles()
+
+
+def canonical_style(style: str) -> str:
+    """The first label of :data:`BANDAI_STYLES` that names the same style as `style` ("old" ->
+    "elderly"); `style` itself when the table does not know it."""
+    spec = BANDAI_STYLES.get(style)
+    return next((label for label, other in BANDAI_STYLES.items() if other is spec), style)
+
 
 _NOUNS = ("person", "person", "man", "woman")  # "an exhausted <noun>"
 _POSTPOSITIVE_PEOPLE = ("someone", "somebody")  # "someone worn out walks"

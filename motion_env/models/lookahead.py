@@ -1,0 +1,149 @@
+"""The look-ahead head: the path controller's next ``horizon`` frames in one pass.
+
+The stream (:mod:`motion_env.generation.streaming`) conditions each token on the root path one
+second (``path_horizon`` = 20 frames) ahead of the frames it decodes. With the controller alone,
+a new caption or route means rolling that second out again, 21 sequential GRU steps. The head
+predicts the same window from the controller's state at one frame in one MLP pass: its GRU state,
+its caption projection, its waypoint features (:meth:`PathController.waypoint_features`) and its
+last velocity. It is distilled from the controller's own roll-outs
+(:mod:`motion_env.training.lookahead`), so it says where the controller would go, not where the
+take went.
+
+Output: per frame k = 1..horizon after the state's frame, the offset of the root in the state's
+heading frame (lateral, forward, metres) and the change of heading (radians), each scaled by a
+per-frame, per-channel ``out_scale`` (the spread of the distillation targets, stored with the
+weights) so that every output is O(1) to the network.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from motion_env.models.checkpoint import load_checkpoint
+from motion_env.models.controller import PathController
+from motion_env.models.controller_state import ControllerState
+from motion_env.models.waypoint_features import from_heading_frame_torch, step_input_dim
+from motion_env.motion.validation import CheckedConfig, PositiveInt
+
+__all__ = ["LOOKAHEAD_FILE", "LookaheadConfig", "LookaheadHead", "load_lookahead", "controller_fingerprint"]
+
+LOOKAHEAD_FILE = "lookahead.pt"
+CHECKPOINT_KIND = "lookahead"
+
+
+@dataclass
+class LookaheadConfig(CheckedConfig):
+    """Sizes of :class:`LookaheadHead`; the first three must be those of the controller it reads.
+
+    Attributes:
+        hidden: the controller's GRU width.
+        text_proj: the controller's caption projection width.
+        num_slots: the controller's waypoint slots.
+        horizon: frames predicted after the state's frame (the stream's ``path_horizon``).
+        width: width of the MLP's hidden layers.
+        layers: hidden layers of the MLP.
+    """
+
+    hidden: PositiveInt = 384
+    text_proj: PositiveInt = 64
+    num_slots: PositiveInt = 4
+    horizon: PositiveInt = 20
+    width: PositiveInt = 384
+    layers: PositiveInt = 3
+
+    @property
+    def input_dim(self) -> int:
+        # the controller's GRU state beside what its step reads
+        return self.hidden + step_input_dim(self.text_proj, self.num_slots)
+
+
+def controller_fingerprint(controller: PathController) -> float:
+    """A number that tells one controller's weights from another's (the head is distilled from one)."""
+    return float(sum(p.detach().double().abs().sum().item() for p in controller.parameters()))
+
+
+class LookaheadHead(nn.Module):
+    """MLP: the controller's state at a frame -> its root path over the next ``horizon`` frames."""
+
+    def __init__(self, config: LookaheadConfig) -> None:
+        super().__init__()
+        self.config = c = config
+        dims = [c.input_dim] + [c.width] * c.layers
+        self.layers = nn.ModuleList(nn.Linear(a, b) for a, b in zip(dims[:-1], dims[1:], strict=True))
+        self.last = nn.Linear(c.width, c.horizon * 3)
+        # The normalisation of inputs and outputs, fitted on the distillation data (saved with the weights).
+        self.register_buffer("in_mean", torch.zeros(c.input_dim))
+        self.register_buffer("in_std", torch.ones(c.input_dim))
+        self.register_buffer("out_scale", torch.ones(c.horizon, 3))
+
+    def check_controller(self, controller: PathController, where: str = "look-ahead head") -> None:
+        """Raise a ValueError naming `where` when the controller's sizes are not the head's."""
+        cc, c = controller.config, self.config
+        theirs, ours = (cc.hidden, cc.text_proj, cc.num_slots), (c.hidden, c.text_proj, c.num_slots)
+        if theirs != ours:
+            raise ValueError(
+                f"{where} reads a controller of (hidden, text_proj, num_slots) = {ours}, got {theirs}"
+            )
+
+    def set_normalization(self, in_mean: torch.Tensor, in_std: torch.Tensor, out_scale: torch.Tensor) -> None:
+        """Set the input mean/std ((D,) each) and the output scale ((horizon, 3))."""
+        with torch.no_grad():
+            self.in_mean.copy_(in_mean)
+            self.in_std.copy_(in_std.clamp(min=1e-3))
+            self.out_scale.copy_(out_scale.clamp(min=1e-4))
+
+    @staticmethod
+    def inputs(controller: PathController, state: ControllerState) -> torch.Tensor:
+        """(B, input_dim) what the head reads of `state`: GRU state, caption projection, waypoint
+        features and the last velocity (halved, as the controller reads it)."""
+        feats, _, _ = controller.waypoint_features(state)
+        text = controller._text_features(state.text)
+        return torch.cat([state.hidden, text, feats, state.vel * 0.5], dim=-1)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, input_dim) inputs -> (B, horizon, 3) offsets in the start's heading frame (metres,
+        lateral and forward) and heading changes (radians)."""
+        if x.ndim != 2 or x.shape[1] != self.config.input_dim:
+            raise ValueError(f"look-ahead inputs must be (B, {self.config.input_dim}), got {tuple(x.shape)}")
+        h = (x - self.in_mean) / self.in_std
+        for layer in self.layers:
+            h = F.gelu(layer(h))
+        return self.last(h).reshape(x.shape[0], self.config.horizon, 3) * self.out_scale
+
+    def predict(self, controller: PathController, state: ControllerState) -> torch.Tensor:
+        """(B, horizon, 3) world x, z, heading of frames frame+1 .. frame+horizon of each character."""
+        offsets = self(self.inputs(controller, state))
+        xz = state.pos[:, None] + from_heading_frame_torch(offsets[..., :2], state.theta[:, None])
+        return torch.cat([xz, (state.theta[:, None] + offsets[..., 2])[..., None]], dim=-1)
+
+    def num_parameters(self) -> int:
+        return sum(p.numel() for p in self.parameters())
+
+
+def load_lookahead(
+    folder: str | Path, controller: PathController, device: str | torch.device = "cpu"
+) -> tuple[LookaheadHead | None, dict[str, Any] | None]:
+    """The look-ahead head of a weights folder and its checkpoint, or (None, None) without one.
+
+    It must have been distilled from `controller` (sizes and the weights' fingerprint); a
+    ValueError names the file otherwise."""
+    path = Path(folder) / LOOKAHEAD_FILE
+    if not path.is_file():
+        return None, None
+    head, ckpt = load_checkpoint(path, CHECKPOINT_KIND, LookaheadConfig, LookaheadHead, device)
+    head.check_controller(controller, str(path))
+    stored = ckpt.get("controller_fingerprint")
+    ours = controller_fingerprint(controller)
+    if stored is None or not math.isclose(float(stored), ours, rel_tol=1e-5):
+        raise ValueError(
+            f"{path} was distilled from another controller (fingerprint {stored}, this one {ours:.6g}); "
+            "train it again: motion-env train lookahead"
+        )
+    return head, ckpt
