@@ -116,7 +116,7 @@ _TRAINERS = {
         "motion_env.training.lookahead",
         "LookaheadTrainConfig",
         "the stream's look-ahead head, distilled from a weights folder's controller (then "
-        "training.lookahead.export_lookahead into that folder as lookahead.pt)",
+        "models.checkpoint.export_checkpoint into that folder as lookahead.pt)",
     ),
     "caption-adapter": (
         "motion_env.training.caption_adapter",

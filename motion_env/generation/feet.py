@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from motion_env.motion.rotations import qbetween, qrot
+
 __all__ = [
     "FOOT_BLEND",
     "FOOT_MAX_OFFSET",
@@ -77,16 +79,6 @@ def soft_reach(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, goal: np.nd
     return hip + v * (soft_limit(d, start, band) / np.maximum(d, 1e-9))[:, None]
 
 
-def _turned(v: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(N, 3) vectors `v` turned by the shortest rotation taking unit `a` to unit `b` (N, 3);
-    opposite axes (no shortest rotation) leave `v` as it is."""
-    c = np.cross(a, b)
-    dot = (a * b).sum(-1, keepdims=True)
-    cv = np.cross(c, v)
-    turned = v + cv + np.cross(c, cv) / np.maximum(1.0 + dot, 1e-6)
-    return np.where(dot > -0.999, turned, v)
-
-
 def two_bone_ik(
     hip: np.ndarray,
     knee: np.ndarray,
@@ -123,7 +115,7 @@ def two_bone_ik(
     if bend_hint is not None:
         hint_n = np.linalg.norm(bend_hint, axis=-1, keepdims=True)
         bend = bend + hint_weight * bend_hint / np.maximum(hint_n, max(hint_length, 1e-9))
-    pole = _turned(bend, axis0, u)
+    pole = qrot(qbetween(axis0, u), bend)
     pole = pole - (pole * u).sum(-1, keepdims=True) * u
     pole_n = np.linalg.norm(pole, axis=-1, keepdims=True)
     # A straight leg with no hint has no bend plane: bend the knee along the original shin.

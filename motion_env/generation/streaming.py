@@ -132,7 +132,7 @@ class MotionStream:
         self._emitted = np.zeros(b, np.int64)
         self._decoded = np.zeros(b, np.int64)
         # A change waits for the next token; `_predicted`: the look-ahead beyond the roll-out is the head's.
-        self._dirty, self._route_changed, self._predicted = (np.zeros(b, bool) for _ in range(3))
+        self._dirty, self._predicted = np.zeros(b, bool), np.zeros(b, bool)
         # Checked routes, planned when the next token needs them (the last one counts): plan_route's args.
         self._pending: dict[int, tuple[np.ndarray | None, np.ndarray, int]] = {}
         self._decoder = g.vqvae.decoder_stream(b)
@@ -224,7 +224,7 @@ class MotionStream:
             # Feasible from where the character is now (times are frames of its episode).
             where, frame = self._root[i, :2].copy(), int(self._emitted[i])
             self._pending[int(i)] = (check_feasible(route, where, self.infeasible, frame), where, frame)
-            self._dirty[i] = self._route_changed[i] = True
+            self._dirty[i] = True
 
     def set_joint_targets(
         self,
@@ -308,7 +308,7 @@ class MotionStream:
         self._texts[i], self._routes[i] = text, route
         self._snapped[i, 0] = start_arr
         self._emitted[i] = self._decoded[i] = 0
-        self._dirty[i] = self._route_changed[i] = self._predicted[i] = False
+        self._dirty[i] = self._predicted[i] = False
         self._pending.pop(int(i), None)
         self._decoder.reset([i])
         self._feet.reset(i)
@@ -353,7 +353,7 @@ class MotionStream:
         slots = torch.as_tensor(anchors % self._ring, device=g.device)
         rows_t = torch.as_tensor(rows, device=g.device)
         self._front = self._states.restore(self._front, rows_t, torch.as_tensor(anchors, device=g.device))
-        changed = self._route_changed[rows]
+        changed = np.array([int(i) in self._pending for i in rows], bool)  # a new route waits
         if changed.any():
             moved = rows[changed]
             for i in moved:
@@ -361,7 +361,7 @@ class MotionStream:
             self._front = g.controller.set_routes(self._front, moved, [self._routes[i] for i in moved])
             moved_t = torch.as_tensor(moved, device=g.device)
             self._states.queue[moved_t, slots[torch.as_tensor(changed)]] = self._front.queue[moved_t]
-        self._dirty[rows] = self._route_changed[rows] = False
+        self._dirty[rows] = False
 
     def _advance(self, rows: np.ndarray, targets: np.ndarray) -> None:
         """Step the controller of `rows` until each reaches its target frame, recording every frame."""

