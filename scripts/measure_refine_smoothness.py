@@ -6,11 +6,13 @@ same seed and targets taken from the real take (a wrist at 1 frame, the pelvis a
 head at 25 % of the frames, all six control joints at 2 keyframes). Per controlled clip: its
 largest joint acceleration (second difference x fps^2) over that of the clip without targets.
 Prints the 50th / 90th percentile and the largest ratio, the share of clips at most 1.25x, the
-mean target error and the seconds per controlled clip (with its quiet-machine equivalent when
-``../shared/tools/calib.py`` is there), and the same ratios apart for the clips whose targets
-the path without targets already brings within reach (:func:`~motion_env.generation.root_bending.
-within_reach`: the same sampled motion, refined) and for those whose path is steered to the
-targets (a motion sampled anew on another path: the ratio then compares two different motions).
+mean target error, the foot skating of the controlled clips and of the same seeds without targets
+(the share of frames with a low foot sliding), and the seconds per controlled clip (with its
+quiet-machine equivalent when ``../shared/tools/calib.py`` is there), and the same ratios apart
+for the clips whose targets the path without targets already brings within reach
+(:func:`~motion_env.generation.root_bending.within_reach`: the same sampled motion, refined) and
+for those whose path is steered to the targets (a motion sampled anew on another path: the ratio
+then compares two different motions).
 
 Then walks under a beam (``HeightLimit`` on the head, 1.3 m, 60 frames, as
 ``motion-env eval control``'s objectives with a lower beam): foot skating (the share of frames
@@ -127,7 +129,7 @@ def main() -> None:
     gen.refine_config = dataclasses.replace(gen.refine_config, **changes)
     calib = _calibration()
     rng = np.random.default_rng(0)
-    ratios, errors, reach, seconds, quiet = [], [], [], [], []
+    ratios, errors, reach, seconds, quiet, skating = [], [], [], [], [], []
     for take in control_cases(args.data, args.takes, split=args.split):
         t_len = len(take.joints)
         free = gen.generate(take.text, num_frames=t_len, seed=0, start=take.start).joints
@@ -147,6 +149,7 @@ def main() -> None:
             known = ~np.isnan(targets[..., 0])
             errors.append(float(np.linalg.norm(made.joints[known] - targets[known], axis=-1).mean()))
             ratios.append(largest_acceleration(made.joints) / largest_acceleration(free))
+            skating.append((foot_skating_ratio(made.joints), foot_skating_ratio(free)))
             reach.append(within_reach(targets, path))
             if args.per_clip:
                 print(
@@ -161,7 +164,9 @@ def main() -> None:
     print(
         f"{gen.refine_config}\n{args.split} split, {len(r)} controlled clips: largest acceleration / "
         f"same seed without targets: {_ratios(r)}; mean target error {np.mean(errors) * 100:.2f} cm; "
-        f"{speed}\n  targets within reach of the path without them (same motion, refined): "
+        f"{speed}\n  foot skating {np.mean([s for s, _ in skating]):.3f}, the same seeds without targets "
+        f"{np.mean([f for _, f in skating]):.3f}\n  targets within reach of the path without them "
+        f"(same motion, refined): "
         f"{_ratios(r[near])}\n  path steered to the targets (a motion sampled anew): {_ratios(r[~near])}"
     )
     if args.beams > 0:

@@ -200,23 +200,23 @@ class CharacterBatch:
         on_route = (
             (cols >= self.k[:, None]) & (cols < self.route_count[:, None]) & (dist <= self.config.snap_radius)
         )
-        for b in np.nonzero(apply)[0]:
-            if on_route[b].any():
-                j = int(np.argmax(on_route[b]))
-                if self.following[b] and j == self.k[b]:
-                    continue  # "keep following the route"
-                self.k[b], self.following[b] = j, True
-                self.command_xz[b] = self.route_arr[b, j, :2]
-                self.stream.set_waypoints(self.routes[b][j:].copy(), index=int(b))
-            else:
-                if (
-                    not self.following[b]
-                    and np.linalg.norm(cmd[b] - self.command_xz[b]) <= _COMMAND_TOLERANCE
-                ):
-                    continue
-                self.following[b] = False
-                self.command_xz[b] = cmd[b]
-                self.stream.set_waypoints(cmd[b][None].astype(np.float32), index=int(b))
+        rows = np.nonzero(apply)[0]
+        hit = on_route[rows].any(axis=1)
+        for b in rows[hit]:
+            j = int(np.argmax(on_route[b]))
+            if self.following[b] and j == self.k[b]:
+                continue  # "keep following the route"
+            self.k[b], self.following[b] = j, True
+            self.command_xz[b] = self.route_arr[b, j, :2]
+            self.stream.set_waypoints(self.routes[b][j:].copy(), index=int(b))
+        # Detours, all at once: the point each character walks to (an unchanged one is not re-sent).
+        detour = rows[~hit]
+        moved = np.linalg.norm(cmd[detour] - self.command_xz[detour], axis=1)
+        detour = detour[self.following[detour] | (moved > _COMMAND_TOLERANCE)]
+        if len(detour):
+            self.following[detour] = False
+            self.command_xz[detour] = cmd[detour]
+            self.stream.set_goals(cmd[detour].astype(np.float32), detour)
 
     def emit_frame(self, rows: np.ndarray | None = None) -> None:
         """Emit one frame of every character (or of `rows`: the others wait) and update positions,

@@ -6,8 +6,10 @@ floor. This stage, run on the feet stage's output, fixes the vertical motion of 
 
 - **ground**: the body stands on its planted feet (a body that floats above or sinks below the
   lowest foot the decoder marks planted is lowered or raised to it, the estimate followed over
-  about half a second, and raised where a foot would still be below the floor); a planted foot's
-  lowest sole point is on the floor, a free foot none below it and, while it moves, clear of it
+  about half a second, and raised where a foot would still be below the floor); a foot the
+  decoder marks planted while the body drags it faster than its flags allow is a free foot
+  (:data:`DRAG_STEP`); a planted foot's lowest sole point is on the floor, a free foot none below
+  it and, while it moves, clear of it
   (:func:`~motion_env.generation.ground.ground_feet`; legs are re-solved with
   :func:`~motion_env.generation.feet.two_bone_ik`, so bones keep their lengths and feet the
   horizontal place the feet stage pinned);
@@ -33,6 +35,7 @@ from motion_env.generation.feet import LEGS
 from motion_env.generation.ground import (
     FLAT_ANKLE_HEIGHT,
     FLAT_ANKLE_RANGE,
+    SWING_RISE,
     SWING_STRAIGHT,
     deepest_reach,
     flight_frames,
@@ -63,6 +66,10 @@ UNREACHABLE = 0.04
 # The longest flight (frames); a longer stretch without contacts is no jump (a decoder that marks
 # no contacts at all), and the body is not made to fall.
 MAX_FLIGHT_FRAMES = 16
+# A foot flagged in contact whose ankle and toe both move farther than this (m) a frame, two
+# frames running, is dragged, not planted (PhysicsFilter._planted): HumanML3D's contact flags
+# mark feet slower than about 4.5 cm a frame (motion.features.FOOT_CONTACT_THRESHOLD).
+DRAG_STEP = 0.045
 # Height plans per call at most: each finds landings and take-offs the flags missed.
 _REPLANS = 4
 
@@ -109,12 +116,16 @@ class PhysicsFilter:
         self.flat = np.zeros((batch, 2))  # sum and count of flat feet's ankle heights
         self.free = np.zeros((batch, 2))  # frames each foot has been free, up to the last frame
         self.floating = np.full(batch, np.nan)  # how far the body floats (m), NaN: not known yet
+        self.moving = np.zeros((batch, 2), dtype=bool)  # feet flagged yet moving in the last frame
+        self.lift = np.zeros((batch, 2))  # clearance a dragged foot had in the last frame (m)
 
     def reset(self, i: int) -> None:
         """Forget character i's past (a new episode)."""
         self.past[i] = self.past_raw[i] = self.feet[i] = self.soles[i] = 0.0
         self.flat[i] = self.free[i] = 0.0
         self.past_flight[i] = False
+        self.moving[i] = False
+        self.lift[i] = 0.0
         self.seen[i] = self.airborne[i] = 0
         self.floating[i] = np.nan
 
@@ -135,20 +146,18 @@ class PhysicsFilter:
         # What needs no plan is measured for every row at once.
         flat_ankle = self._flat_ankle(rows, joints, flags)  # (R,)
         soles = sole_heights(joints, flat_ankle[:, None])  # (R, n, 2)
-        planted = flags.reshape(r, n, 2, 2).any(axis=-1)  # (R, n, 2) left, right
+        steps, descent = self._steps(rows, joints, soles)
+        flagged = flags.reshape(r, n, 2, 2).any(axis=-1)  # (R, n, 2) left, right
+        planted = self._planted(rows, flagged, steps)
         reach = [
             -deepest_reach(frames[:, hip], frames[:, knee], frames[:, ankle]) for hip, knee, ankle, _ in LEGS
         ]
         lowest = soles - np.stack(reach, axis=-1).reshape(r, n, 2)  # soles with the legs stretched
         com = centre_of_mass(joints)[..., 1]
         flight = flight_frames(flags, soles)
-        clearance = self._clearance(rows, joints, planted, soles)
-        heights = np.stack(
-            [
-                self._plan(int(i), soles[k], com[k], planted[k], flight[k], lowest[k])
-                for k, i in enumerate(rows)
-            ]
-        )
+        clearance = self._clearance(rows, joints, planted, steps, descent)
+        planted, clearance = self._settle(rows, flagged, planted, clearance)
+        heights = self._plan_rows(rows, soles, com, flagged, flight, lowest)
         # The legs' re-solve is the costly part: every row's frames at once.
         out = place_body(
             frames,
@@ -172,44 +181,59 @@ class PhysicsFilter:
         mean = self.flat[rows, 0] / np.maximum(self.flat[rows, 1], 1)
         return np.where(seen, np.clip(mean, *FLAT_ANKLE_RANGE), FLAT_ANKLE_HEIGHT)
 
-    def _plan(
+    def _plan_rows(
         self,
-        i: int,
+        rows: np.ndarray,
         soles: np.ndarray,
         com: np.ndarray,
         planted: np.ndarray,
         flight: np.ndarray,
         lowest: np.ndarray,
     ) -> np.ndarray:
-        """Character i's new frames: (n,) heights of the centre of mass, from (n, 2) sole heights,
-        (n,) decoded heights of the centre of mass, (n, 2) planted feet, (n,) frames in the air
-        by the flags, (n, 2) sole heights with the legs stretched; updates its state."""
-        floating = self._float(i, support_gap(soles, planted))
-        # The body is wanted standing on its planted feet, and raised where a foot would still
-        # be below the floor (a landing the flags have not seen: a straight leg cannot shorten).
-        raw = com - floating + np.maximum(floating - soles.min(axis=1), 0.0)
-        flight, _ = _cap_flights(flight, int(self.airborne[i]))
-        keep = self._keep(i)
-        support = np.where(planted.any(axis=1, keepdims=True), planted, True)
-        settled = np.zeros(len(com), dtype=bool)  # frames found on the floor: they stay there
+        """The new frames of characters `rows`: (R, n) heights of the centre of mass, from
+        (R, n, 2) sole heights, (R, n) decoded heights of the centre of mass, (R, n, 2) planted
+        feet, (R, n) frames in the air by the flags, (R, n, 2) sole heights with the legs
+        stretched; updates their state. The plans of rows with the same history length are one
+        batched solve (:func:`plan_heights` of the rows), replanned together while some row finds
+        a landing or a take-off; each row keeps its own state (floating estimate, flight caps,
+        history)."""
+        r, n = com.shape
+        raw, flights = np.empty((r, n)), np.empty((r, n), dtype=bool)
+        for k, i in enumerate(rows):
+            floating = self._float(int(i), support_gap(soles[k], planted[k]))
+            # The body is wanted standing on its planted feet, and raised where a foot would still
+            # be below the floor (a landing the flags have not seen: a straight leg cannot shorten).
+            raw[k] = com[k] - floating + np.maximum(floating - soles[k].min(axis=1), 0.0)
+            flights[k], _ = _cap_flights(flight[k], int(self.airborne[i]))
+        support = np.where(planted.any(axis=2, keepdims=True), planted, True)
+        settled = np.zeros((r, n), dtype=bool)  # frames found on the floor: they stay there
+        planned, todo, seen = np.empty((r, n)), np.ones(r, dtype=bool), self.seen[rows]
         for _ in range(_REPLANS):
-            past_flight = self.past_flight[i, keep]
-            planned = plan_heights(
-                raw, np.r_[past_flight, flight], self.past[i, keep], self.past_raw[i, keep]
-            )
-            shift = (planned - com)[:, None]
+            for h in np.unique(seen[todo]):
+                sel = np.nonzero(todo & (seen == h))[0]
+                at, keep = rows[sel], slice(self.HISTORY - int(h), self.HISTORY)
+                planned[sel] = plan_heights(
+                    raw[sel],
+                    np.concatenate([self.past_flight[at, keep], flights[sel]], axis=1),
+                    self.past[at, keep],
+                    self.past_raw[at, keep],
+                )
+            shift = (planned - com)[:, :, None]
             # A fall that brings a foot to the floor is a landing, whatever the flags say; a body
             # whose feet cannot reach the floor is in the air.
-            landed = flight & ((soles + shift).min(axis=1) < 0.0)
-            aloft = ~flight & ~settled & np.where(support, lowest + shift > UNREACHABLE, True).all(axis=1)
-            if not landed.any() and not aloft.any():
+            landed = flights & ((soles + shift).min(axis=2) < 0.0) & todo[:, None]
+            reach = np.where(support, lowest + shift > UNREACHABLE, True).all(axis=2)
+            aloft = ~flights & ~settled & reach & todo[:, None]
+            todo = landed.any(axis=1) | aloft.any(axis=1)
+            if not todo.any():
                 break
-            if landed.any():
-                first = int(np.argmax(landed))
-                end = first + _run_length(flight[first:])
-                flight[first:end], settled[first:end] = False, True
-            flight |= aloft
-        self._remember(i, planned, raw, flight)
+            for k in np.nonzero(landed.any(axis=1))[0]:
+                first = int(np.argmax(landed[k]))
+                end = first + _run_length(flights[k, first:])
+                flights[k, first:end], settled[k, first:end] = False, True
+            flights |= aloft
+        for k, i in enumerate(rows):
+            self._remember(int(i), planned[k], raw[k], flights[k])
         return planned
 
     def _keep(self, i: int) -> slice:
@@ -229,11 +253,11 @@ class PhysicsFilter:
             out[t] = 0.0 if np.isnan(self.floating[i]) else self.floating[i]
         return out
 
-    def _clearance(
-        self, rows: np.ndarray, joints: np.ndarray, planted: np.ndarray, soles: np.ndarray
-    ) -> np.ndarray:
-        """(R, n, 2) lowest sole height of the free feet of characters `rows` in new frames (R, n,
-        22, 3), `planted` and `soles` (R, n, 2) (:func:`swing_clearance`); updates the feet's
+    def _steps(
+        self, rows: np.ndarray, joints: np.ndarray, soles: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(R, n, 4) horizontal steps (m) of the foot joints of characters `rows` into each new
+        frame (R, n, 22, 3) and (R, n, 2) how far each sole (`soles`) went down; updates the feet's
         state."""
         feet = joints[:, :, list(FOOT_JOINTS)][..., [0, 2]]  # (R, n, 4, 2)
         steps = np.linalg.norm(
@@ -242,6 +266,33 @@ class PhysicsFilter:
         descent = -np.diff(np.concatenate([self.soles[rows][:, None], soles], axis=1), axis=1)
         steps[self.seen[rows] == 0, 0] = descent[self.seen[rows] == 0, 0] = 0.0  # nothing before
         self.feet[rows], self.soles[rows] = feet[:, -1], soles[:, -1]
+        return steps, descent
+
+    def _planted(self, rows: np.ndarray, flagged: np.ndarray, steps: np.ndarray) -> np.ndarray:
+        """(R, n, 2) feet of characters `rows` standing on the floor in new frames: flagged
+        (`flagged` (R, n, 2): a contact channel on), but not dragged: flagged with both its joints
+        moving farther than DRAG_STEP a frame (`steps` (R, n, 4)) in this frame and the one before.
+
+        The feet stage holds a planted foot still, up to FOOT_MAX_OFFSET from where the body puts
+        it; a foot the body drags farther (a decoder that flags a foot moving at 2 m/s for a
+        second) slides along, and on the floor it skated (the replay's foot-skating check). A foot
+        that lands fast moves so for its landing frame only: it stays planted."""
+        moving = flagged & (steps.reshape(steps.shape[:2] + (2, 2)).min(axis=-1) > DRAG_STEP)
+        dragged = moving & np.concatenate([self.moving[rows][:, None], moving[:, :-1]], axis=1)
+        self.moving[rows] = moving[:, -1]
+        return flagged & ~dragged
+
+    def _clearance(
+        self,
+        rows: np.ndarray,
+        joints: np.ndarray,
+        planted: np.ndarray,
+        steps: np.ndarray,
+        descent: np.ndarray,
+    ) -> np.ndarray:
+        """(R, n, 2) lowest sole height of the free feet of characters `rows` in new frames (R, n,
+        22, 3), given `planted` (R, n, 2), the foot joints' `steps` (R, n, 4) and the soles'
+        `descent` (R, n, 2) (:meth:`_steps`; :func:`swing_clearance`)."""
         legs = [(joints[..., h, :], joints[..., k, :], joints[..., a, :]) for h, k, a, _ in LEGS]
         stretch = np.stack([_norm(a - h) / (_norm(k - h) + _norm(a - k)) for h, k, a in legs], axis=-1)
         descent = np.where(stretch > SWING_STRAIGHT, np.inf, descent)
@@ -250,6 +301,25 @@ class PhysicsFilter:
         for t in range(joints.shape[1]):
             self.free[rows] = free[:, t] = np.where(planted[:, t], 0.0, np.minimum(self.free[rows] + 1, 100))
         return swing_clearance(speed, free, descent)
+
+    def _settle(
+        self, rows: np.ndarray, flagged: np.ndarray, planted: np.ndarray, clearance: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """`planted` and `clearance` (R, n, 2) of characters `rows` with each dragged foot that
+        stops being dragged while still flagged (`flagged`) let down as it was lifted, by SWING_RISE
+        a frame, before it is stood on: put down at once, its knee jolted (backward walks, whose
+        flagged feet are dragged for a few frames every step: their jerk 1.18 -> 1.55x)."""
+        planted, clearance = planted.copy(), clearance.copy()
+        if not self.lift[rows].any() and not (flagged & ~planted).any():
+            return planted, clearance  # nothing dragged: nothing to let down
+        for t in range(planted.shape[1]):
+            lift = self.lift[rows]
+            dragged = flagged[:, t] & ~planted[:, t]
+            settling = planted[:, t] & (lift > 0.0)
+            clearance[:, t] = np.where(settling, np.maximum(lift - SWING_RISE, 0.0), clearance[:, t])
+            planted[:, t] &= ~(settling & (clearance[:, t] > 0.0))
+            self.lift[rows] = np.where(dragged | settling, clearance[:, t], 0.0)
+        return planted, clearance
 
     def _remember(self, i: int, heights: np.ndarray, raw: np.ndarray, flight: np.ndarray) -> None:
         """Keep character i's last frames: the planned heights (:meth:`apply_rows` puts in the

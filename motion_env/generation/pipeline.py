@@ -427,25 +427,29 @@ class Pipeline:
 
     # ------------------------------------------------------------------ 5. body on the path
     def compose(
-        self, features: np.ndarray, root_path: np.ndarray, num_frames: int
+        self, features: np.ndarray, root_path: np.ndarray, num_frames: int, first: int = 0
     ) -> tuple[np.ndarray, np.ndarray]:
         """Decoded features (n, 263) on a root path (>= n, 3) -> world joints and the root path used
         (or B of each, (B, n, 263) and (B, m, 3), in one call: the stream's characters).
 
         The root path may run past the features (look-ahead frames): they shape the direction of
         travel at the last frames; the local pose is held over them and they are cut off.
+        `first` > 0 puts frames first..num_frames-1 only on the path (the stream's new frames of
+        its window; the earlier ones still shape the direction of travel): placing the body and
+        its bone lengths are per frame, so they are the same numbers as those frames of a call
+        with `first` 0.
 
         Returns:
-            (num_frames, 22, 3) joints before foot cleanup, (num_frames, 3) root path whose heading
-            is turned to the direction of travel.
+            (num_frames - first, 22, 3) joints before foot cleanup, (num_frames - first, 3) root
+            path whose heading is turned to the direction of travel.
         """
         n, m = features.shape[-2], root_path.shape[-2]
         local = local_pose_from_features(features)
         if m > n:
             local = np.concatenate([local, np.repeat(local[..., -1:, :, :], m - n, axis=-3)], axis=-3)
-        path = align_heading_to_travel(root_path)
-        joints = on_bone_lengths(recompose(local, path, face_travel=False)[..., :num_frames, :, :])
-        return joints, path[..., :num_frames, :]
+        path = align_heading_to_travel(root_path)[..., first:num_frames, :]
+        joints = on_bone_lengths(recompose(local[..., first:num_frames, :, :], path, face_travel=False))
+        return joints, path
 
     # ------------------------------------------------------------------ 6. feet and physics
     def place_clip(

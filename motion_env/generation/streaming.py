@@ -8,7 +8,9 @@ frames) at a time:
   ``f + path_horizon`` (20 frames, one second: the long window of the path features), so the
   path controller runs up to 20 frames (1 s) ahead of the emitted frame. The first
   :meth:`MotionStream.step` pays for rolling it out; every later step that starts a token pays
-  for ``rate`` more controller frames.
+  for ``rate`` more controller frames (a single character rolls them out in the step after the
+  token instead, when nothing changed: the same frames, a lighter token step). The look-ahead's
+  code is :mod:`motion_env.generation.stream_paths`.
 - Control delay: a new caption or new waypoints act from the next token on, i.e. on the frames
   after those already decoded (at most ``rate`` frames, 0.2 s, after the call). The controller's
   look-ahead is rolled out again from the last decoded frame, so no emitted pose moves and the
@@ -40,7 +42,6 @@ import torch
 from motion_env.generation.feet import FootPinner
 from motion_env.generation.physics import PhysicsFilter
 from motion_env.generation.pipeline import CONTROLLER_STREAM, TOKEN_STREAM, Pipeline, row_generator
-from motion_env.generation.recompose import route_anchors, spread_residuals
 from motion_env.generation.request import (
     check_feasible,
     check_route,
@@ -54,23 +55,22 @@ from motion_env.generation.request import (
 from motion_env.generation.request_controls import check_joint_targets, check_objectives
 from motion_env.generation.route_planning import plan_route
 from motion_env.generation.stream_control import StreamControl
+from motion_env.generation.stream_paths import CATCH_UP_TOKENS, StreamPaths, first_token_path_features
 from motion_env.joint_targets import JointTargets
 from motion_env.models.controller_state import StateRing
-from motion_env.models.path_features import D_PATH, token_path_features
+from motion_env.models.path_features import D_PATH
 from motion_env.models.sampling import sample_tokens
 from motion_env.motion.skeleton import FEATURE_DIM, FOOT_CONTACT, NUM_JOINTS
+from motion_env.motion.trajectory import MAX_COORDINATE
 from motion_env.objectives import HeightLimit
 
-__all__ = ["MotionStream"]
+__all__ = ["CATCH_UP_TOKENS", "MotionStream"]
 
 # Frames of decoded body kept as left context of the recompose.
 STREAM_CONTEXT_FRAMES = 40
-# After a predicted look-ahead the roll-out advances by up to this many tokens' frames per token
-# until it is a horizon ahead again (a token's cost stays bounded while it catches up).
-CATCH_UP_TOKENS = 2
 
 
-class MotionStream:
+class MotionStream(StreamPaths):
     """B characters generated one frame per :meth:`step`, steerable between frames.
 
     Each character's episode starts at its ``start`` (frame 0) and advances one frame per
@@ -226,6 +226,28 @@ class MotionStream:
             self._pending[int(i)] = (check_feasible(route, where, self.infeasible, frame), where, frame)
             self._dirty[i] = True
 
+    def set_goals(self, points: np.ndarray, rows: Sequence[int] | np.ndarray) -> None:
+        """Send each character of `rows` to one point: ``set_waypoints([points[n]], index=rows[n])``
+        for every n (one untimed waypoint each, which asks for no speed), checked in one go.
+
+        Args:
+            points: (N, 2) world x, z.
+            rows: (N,) distinct character indices.
+        """
+        rows = np.asarray(rows, np.int64).reshape(-1)
+        pts = np.asarray(points, np.float64)
+        if pts.shape != (len(rows), 2):
+            raise ValueError(f"points must have shape ({len(rows)}, 2) (one x, z per row), got {pts.shape}")
+        if len(np.unique(rows)) != len(rows) or ((rows < 0) | (rows >= self.batch_size)).any():
+            raise IndexError(f"rows must be distinct indices in [0, {self.batch_size}), got {rows.tolist()}")
+        ok = np.isfinite(pts).all(axis=1) & (np.abs(pts).max(axis=1, initial=0.0) <= MAX_COORDINATE)
+        if not ok.all():
+            check_route(pts[~ok][:1])  # raises the error set_waypoints gives for that point
+        routes = np.concatenate([pts, np.full((len(rows), 1), np.nan)], axis=1).astype(np.float32)
+        for n, i in enumerate(rows.tolist()):
+            self._pending[i] = (routes[n : n + 1], self._root[i, :2].copy(), int(self._emitted[i]))
+        self._dirty[rows] = True
+
     def set_joint_targets(
         self,
         targets: JointTargets | np.ndarray | None,
@@ -343,86 +365,11 @@ class MotionStream:
         self._root[rows] = self._buffer_root[rows, pos]
         self._buffer_pos[rows] += 1
         self._emitted[rows] += 1
+        if not len(need) and len(rows) == self.batch_size:
+            self._roll_ahead()  # the next token's roll-out, spread over the steps before it
         return out
 
     # ------------------------------------------------------------------ internals
-    def _restore(self, rows: np.ndarray) -> None:
-        """Roll the controller of `rows` back to their last decoded frame (after a caption/route change)."""
-        g = self._pipe
-        anchors = np.maximum(self._decoded[rows] - 1, 0)
-        slots = torch.as_tensor(anchors % self._ring, device=g.device)
-        rows_t = torch.as_tensor(rows, device=g.device)
-        self._front = self._states.restore(self._front, rows_t, torch.as_tensor(anchors, device=g.device))
-        changed = np.array([int(i) in self._pending for i in rows], bool)  # a new route waits
-        if changed.any():
-            moved = rows[changed]
-            for i in moved:
-                self._routes[i] = plan_route(*self._pending.pop(int(i)))
-            self._front = g.controller.set_routes(self._front, moved, [self._routes[i] for i in moved])
-            moved_t = torch.as_tensor(moved, device=g.device)
-            self._states.queue[moved_t, slots[torch.as_tensor(changed)]] = self._front.queue[moved_t]
-        self._dirty[rows] = False
-
-    def _advance(self, rows: np.ndarray, targets: np.ndarray) -> None:
-        """Step the controller of `rows` until each reaches its target frame, recording every frame."""
-        g = self._pipe
-        frames = self._front.frame.cpu().numpy()[rows]
-        need = targets - frames
-        for n in np.unique(need[need > 0]):
-            members = rows[need == n]
-            group = torch.as_tensor(members, device=g.device)
-            whole = len(members) == self.batch_size  # every row, in order (rows are sorted)
-            sub = self._front if whole else self._front.take(group)
-            first = sub.frame
-            sub, trace = g.controller.run(sub, int(n), trace=True)
-            self._states.record_trace(group, first, trace)
-            self._front = sub if whole else self._front.put(group, sub)
-
-    def _advance_with_head(
-        self, rows: np.ndarray, first: np.ndarray, last: np.ndarray, changed: np.ndarray
-    ) -> None:
-        """The look-ahead of `rows` up to frames `last`: rows `changed` roll out the token's frames,
-        rows catching up CATCH_UP_TOKENS tokens' frames, the others all; the head predicts the rest."""
-        front = self._front.frame.cpu().numpy()[rows]
-        end = first + self._rate - 1  # the token's last frame
-        behind = self._predicted[rows] & ~changed
-        target = np.where(behind, np.minimum(last, front + CATCH_UP_TOKENS * self._rate), last)
-        target = np.where(changed, end, np.maximum(target, end))
-        self._advance(rows, target)
-        short = target < last
-        self._predicted[rows] = short
-        if not short.any():
-            return
-        sub = self._front.take(torch.as_tensor(rows[short], device=self._pipe.device))
-        roots = self._head.predict(self._pipe.controller, sub).cpu().numpy()  # (N, H, 3)
-        self._states.record_roots(rows[short], target[short], roots, (last - target)[short])
-
-    def _snap_ahead(self, i: int, anchor: int, last: int) -> np.ndarray:
-        """Character i's root path over frames anchor..last, continuing its committed path.
-
-        The controller's path is shifted so that the anchor frame sits where it was emitted, then
-        bent (:func:`~motion_env.generation.recompose.spread_residuals`) through the waypoints
-        ahead that fall inside the window: timed ones after the anchor, untimed ones that the
-        path passes within SNAP_RADIUS (:func:`~motion_env.generation.recompose.route_anchors`).
-        """
-        frames = np.arange(anchor, last + 1)
-        raw = self._states.roots[i, frames % self._ring].astype(np.float64)
-        path = raw.copy()
-        path[:, :2] += self._snapped[i, anchor % self._ring, :2] - raw[0, :2]
-        route = self._routes[i]
-        pelvis = self._control.pelvis_anchors(i, anchor, last) if self._control.active(i) else None
-        if route is None and pelvis is None:
-            return path.astype(np.float32)
-        queue = int(self._states.queue[i, anchor % self._ring])
-        anchors = np.zeros((0, 3), np.float32)
-        if route is not None:
-            anchors = route_anchors(path, route[queue:], first=anchor, open_end=True)
-        if pelvis is not None and len(pelvis):  # pelvis targets bend the path like timed waypoints
-            anchors = anchors[~np.isin(anchors[:, 2], pelvis[:, 2])]
-            anchors = np.concatenate([anchors, pelvis])
-            anchors = anchors[np.argsort(anchors[:, 2], kind="stable")]
-        return spread_residuals(path, anchors).astype(np.float32)
-
     def _produce(self, rows: np.ndarray) -> None:
         """Decode the next token of each character in `rows` and fill their frame buffers: the
         pipeline's stages in their order (:mod:`motion_env.generation.pipeline`), for one token."""
@@ -444,31 +391,12 @@ class MotionStream:
         self._decoded[rows] += self._rate
         self._buffer_pos[rows] = 0
 
-    def _plan_paths(self, rows: np.ndarray, first: np.ndarray) -> list[np.ndarray]:
-        """Each row's root path over frames first..first+horizon: committed up to the anchor (one
-        frame before the token), the controller's look-ahead snapped beyond it."""
-        changed = self._dirty[rows].copy()
-        if changed.any():
-            self._restore(rows[changed])
-        last = first + self._horizon
-        if self._lookahead == "head":
-            self._advance_with_head(rows, first, last, changed)
-        else:
-            self._advance(rows, last)
-            self._predicted[rows] = False
-        ahead = []
-        for n, i in enumerate(rows):
-            f = int(first[n])
-            anchor = max(f - 1, 0)
-            ahead.append(self._snap_ahead(int(i), anchor, f + self._horizon)[f - anchor :])
-        return ahead
-
     def _sample_tokens(self, rows: np.ndarray, ahead: list[np.ndarray]) -> torch.Tensor:
         """One GPT step for the whole batch, in which only `rows` advance: (N,) sampled tokens."""
         g = self._pipe
         path_feat = torch.zeros(self.batch_size, D_PATH)
-        for n, i in enumerate(rows):
-            path_feat[i] = torch.from_numpy(token_path_features(ahead[n], self._rate)[0])
+        feats = first_token_path_features(np.stack(ahead), self._rate)  # each row's next token
+        path_feat[torch.as_tensor(rows)] = torch.from_numpy(feats)
         logits, self._cache = g.gpt.step(self._cache, self._prev.to(g.device), path_feat.to(g.device), rows)
         rows_t = torch.as_tensor(rows, device=logits.device)
         tokens = sample_tokens(logits[rows_t], [self._tok_gens[i] for i in rows], g.sampling)
@@ -495,6 +423,6 @@ class MotionStream:
                 span = np.arange(f + rate - length, f + rate)
                 feats.append(self._features[i, span % ring])
                 roots.append(np.concatenate([self._snapped[i, span[:-rate] % ring], ahead[n]]))
-            j, path = self._pipe.compose(np.stack(feats), np.stack(roots), int(length))
-            joints[sel], paths[sel] = j[:, -rate:], path[:, -rate:]
+            j, path = self._pipe.compose(np.stack(feats), np.stack(roots), int(length), int(length) - rate)
+            joints[sel], paths[sel] = j, path
         return joints, paths

@@ -169,28 +169,38 @@ class PathController(nn.Module):
         return self.set_routes(state, targets, [waypoints] * len(targets))
 
     def set_routes(
-        self, state: ControllerState, rows: Sequence[int], routes: Sequence[np.ndarray | list | None]
+        self,
+        state: ControllerState,
+        rows: Sequence[int],
+        routes: Sequence[np.ndarray | list | None],
+        checked: bool = False,
     ) -> ControllerState:
         """Replace the routes of several characters at once: ``routes[n]`` for character ``rows[n]``
         (None: no route). The others keep theirs; the tensor of waypoints only ever grows, its
-        padding repeats each route's last waypoint as :func:`pack_waypoints` does."""
+        padding repeats each route's last waypoint as :func:`pack_waypoints` does. `checked`: the
+        routes are checked (K, 3) float32 already (the stream's planned routes), not again."""
         b = state.pos.shape[0]
         rows = [int(i) for i in rows]
         for i in rows:
             if not 0 <= i < b:
                 raise IndexError(f"character index {i} out of range for a batch of {b}")
-        new = [None if r is None else validate_waypoints(r) for r in routes]
+        new = list(routes) if checked else [None if r is None else validate_waypoints(r) for r in routes]
         width = max([state.waypoints.shape[1]] + [len(r) for r in new if r is not None])
         wp = state.waypoints
         if width > wp.shape[1]:
             wp = torch.cat([wp, wp[:, -1:].expand(-1, width - wp.shape[1], -1)], dim=1)
         wp, count = wp.clone(), state.count.clone()
-        for i, r in zip(rows, new):
-            if r is None:
-                wp[i], count[i] = 0.0, 0
-            else:
-                route = torch.as_tensor(r, dtype=wp.dtype, device=wp.device)
-                wp[i, : len(r)], wp[i, len(r) :], count[i] = route, route[-1], len(r)
+        # The new rows padded in numpy and written in one go (the last of a row given twice wins).
+        last = dict(zip(rows, new))
+        block = np.zeros((len(last), width, 3), np.float32)
+        counts = np.zeros(len(last), np.int64)
+        for n, r in enumerate(last.values()):
+            if r is not None:
+                block[n, : len(r)], block[n, len(r) :], counts[n] = r, r[-1], len(r)
+        if last:
+            at = torch.as_tensor(list(last), dtype=torch.long, device=wp.device)
+            wp[at] = torch.from_numpy(block).to(device=wp.device, dtype=wp.dtype)
+            count[at] = torch.from_numpy(counts).to(count.device)
         queue = state.queue.clone()
         queue[rows] = 0
         return self._advance_queue(replace(state, waypoints=wp, count=count, queue=queue))

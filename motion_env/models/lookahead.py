@@ -27,12 +27,19 @@ import torch.nn.functional as F
 from torch import nn
 
 from motion_env.models.checkpoint import load_checkpoint
-from motion_env.models.controller import PathController
+from motion_env.models.controller import ControllerConfig, PathController
 from motion_env.models.controller_state import ControllerState
-from motion_env.models.waypoint_features import from_heading_frame_torch, step_input_dim
+from motion_env.models.waypoint_features import from_heading_frame_torch
 from motion_env.motion.validation import CheckedConfig, PositiveInt
 
-__all__ = ["LOOKAHEAD_FILE", "LookaheadConfig", "LookaheadHead", "load_lookahead", "controller_fingerprint"]
+__all__ = [
+    "LOOKAHEAD_FILE",
+    "LookaheadConfig",
+    "LookaheadHead",
+    "controller_fingerprint",
+    "controller_inputs",
+    "load_lookahead",
+]
 
 LOOKAHEAD_FILE = "lookahead.pt"
 CHECKPOINT_KIND = "lookahead"
@@ -40,28 +47,30 @@ CHECKPOINT_KIND = "lookahead"
 
 @dataclass
 class LookaheadConfig(CheckedConfig):
-    """Sizes of :class:`LookaheadHead`; the first three must be those of the controller it reads.
+    """Sizes of :class:`LookaheadHead`.
 
     Attributes:
-        hidden: the controller's GRU width.
-        text_proj: the controller's caption projection width.
-        num_slots: the controller's waypoint slots.
+        input_dim: what the head reads: the GRU state of the controller it is distilled from
+            beside what that controller's step reads (:meth:`for_controller` sets it).
         horizon: frames predicted after the state's frame (the stream's ``path_horizon``).
         width: width of the MLP's hidden layers.
         layers: hidden layers of the MLP.
     """
 
-    hidden: PositiveInt = 384
-    text_proj: PositiveInt = 64
-    num_slots: PositiveInt = 4
+    input_dim: PositiveInt
     horizon: PositiveInt = 20
     width: PositiveInt = 384
     layers: PositiveInt = 3
 
-    @property
-    def input_dim(self) -> int:
-        # the controller's GRU state beside what its step reads
-        return self.hidden + step_input_dim(self.text_proj, self.num_slots)
+    @classmethod
+    def for_controller(cls, controller: ControllerConfig, **sizes: int) -> LookaheadConfig:
+        """The head of a controller with these sizes (`sizes`: horizon, width, layers)."""
+        return cls(input_dim=controller_inputs(controller), **sizes)
+
+
+def controller_inputs(controller: ControllerConfig) -> int:
+    """How many numbers a head reads of a controller's state (:meth:`LookaheadHead.inputs`)."""
+    return controller.hidden + controller.input_dim
 
 
 def controller_fingerprint(controller: PathController) -> float:
@@ -85,11 +94,12 @@ class LookaheadHead(nn.Module):
 
     def check_controller(self, controller: PathController, where: str = "look-ahead head") -> None:
         """Raise a ValueError naming `where` when the controller's sizes are not the head's."""
-        cc, c = controller.config, self.config
-        theirs, ours = (cc.hidden, cc.text_proj, cc.num_slots), (c.hidden, c.text_proj, c.num_slots)
-        if theirs != ours:
+        theirs = controller_inputs(controller.config)
+        if theirs != self.config.input_dim:
             raise ValueError(
-                f"{where} reads a controller of (hidden, text_proj, num_slots) = {ours}, got {theirs}"
+                f"{where} reads {self.config.input_dim} numbers of a controller's state (its GRU "
+                f"state and step input), but this controller has {theirs}: distil a head for it "
+                "(motion-env train lookahead)"
             )
 
     def set_normalization(self, in_mean: torch.Tensor, in_std: torch.Tensor, out_scale: torch.Tensor) -> None:

@@ -9,7 +9,7 @@ as a notification, never as a traceback.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any, Protocol
 
 import viser
@@ -25,6 +25,18 @@ __all__ = ["CLICK_MODES", "ControlPanel", "notify"]
 CLICK_MODES = ("waypoint", "obstacle", "goal (A* agent)", "joint target")
 SHOW_CHOICES = ("character", *ROBOT_CHOICES)
 JUDGE_SECONDS = 5.0
+# The dropdowns' hints (shown on hover).
+SHOW_HINT = (
+    "the character, or the character retargeted onto a robot frame by frame "
+    '(needs the robots extra: pip install -c constraints.txt -e ".[robots]")'
+)
+CLICK_HINT = (
+    "what a click on the floor places; drag a waypoint to move it; shift + drag on the floor draws a path"
+)
+ROBOT_FORMAT_HINT = (
+    "csv: the project's; lafan_csv: LAFAN-style (mjlab's csv_to_npz); mjlab: its tracking .npz; "
+    "gmr: GMR's .pkl"
+)
 
 
 def notify(client: viser.ClientHandle | None, title: str, body: str, error: bool = False) -> None:
@@ -47,6 +59,13 @@ def reported(title: str) -> Callable:
         return run
 
     return wrap
+
+
+def _dropdown(
+    gui: viser.GuiApi, label: str, choices: Sequence[str], hint: str, initial: str | None = None
+) -> viser.GuiDropdownHandle:
+    """A dropdown of `choices` starting on `initial` (the first choice by default)."""
+    return gui.add_dropdown(label, tuple(choices), initial_value=initial or choices[0], hint=hint)
 
 
 class Playback(Protocol):
@@ -86,36 +105,24 @@ class ControlPanel:
     # ------------------------------------------------------------------ the folders
     def _add_character(self, gui: viser.GuiApi, session: StudioSession) -> None:
         with gui.add_folder("Character"):
-            self.character = gui.add_dropdown(
+            self.character = _dropdown(
+                gui,
                 "Character",
                 [str(i + 1) for i in range(session.num_characters)],
-                initial_value="1",
-                visible=session.num_characters > 1,
-                hint="which character the controls below act on",
+                "which character the controls below act on",
             )
+            self.character.visible = session.num_characters > 1
             self.caption = gui.add_text(
                 "Caption", session.snapshot().captions[0], hint="what the character does"
             )
             self.apply_caption = gui.add_button(
                 "Apply caption", hint="from the next token on (0.2 s), no pop"
             )
-            self.show = gui.add_dropdown(
-                "Show",
-                SHOW_CHOICES,
-                initial_value=SHOW_CHOICES[0],
-                hint="the character, or the character retargeted onto a robot frame by frame "
-                '(needs the robots extra: pip install -c constraints.txt -e ".[robots]")',
-            )
+            self.show = _dropdown(gui, "Show", SHOW_CHOICES, SHOW_HINT)
 
     def _add_route(self, gui: viser.GuiApi) -> None:
         with gui.add_folder("Route"):
-            self.click_mode = gui.add_dropdown(
-                "Click places",
-                CLICK_MODES,
-                initial_value=CLICK_MODES[0],
-                hint="what a click on the floor places; drag a waypoint to move it; shift + drag on the "
-                "floor draws a path",
-            )
+            self.click_mode = _dropdown(gui, "Click places", CLICK_MODES, CLICK_HINT)
             self.waypoint_seconds = gui.add_number(
                 "Reach in (s)",
                 0.0,
@@ -131,11 +138,12 @@ class ControlPanel:
 
     def _add_joint_target(self, gui: viser.GuiApi) -> None:
         with gui.add_folder("Joint target"):
-            self.target_joint = gui.add_dropdown(
+            self.target_joint = _dropdown(
+                gui,
                 "Joint",
                 JOINT_NAMES,
-                initial_value="right_wrist",
-                hint='with "Click places: joint target", a click on the floor puts this joint above it',
+                'with "Click places: joint target", a click on the floor puts this joint above it',
+                initial="right_wrist",
             )
             # No min / max here: the session refuses a height out of range and the page says why.
             self.target_height = gui.add_number(
@@ -195,13 +203,7 @@ class ControlPanel:
             self.save_bvh = gui.add_button(
                 "Download .bvh", hint="the episode so far on the canonical skeleton"
             )
-            self.robot_format = gui.add_dropdown(
-                "Robot format",
-                ROBOT_KINDS,
-                initial_value=ROBOT_KINDS[0],
-                hint="csv: the project's; lafan_csv: LAFAN-style (mjlab's csv_to_npz); mjlab: its "
-                "tracking .npz; gmr: GMR's .pkl",
-            )
+            self.robot_format = _dropdown(gui, "Robot format", ROBOT_KINDS, ROBOT_FORMAT_HINT)
             self.save_robot = gui.add_button(
                 "Download robot file",
                 hint="the episode retargeted onto the robot shown (else the Unitree G1), 50 fps",

@@ -239,7 +239,7 @@ def train_lookahead(
             ``lookahead.pt`` in the weights folder is what the generator loads (written with
             :func:`motion_env.models.checkpoint.export_checkpoint`, float16).
         config: training settings (default LookaheadTrainConfig()).
-        model_config: head sizes (default: LookaheadConfig of the controller's sizes).
+        model_config: head sizes (default: ``LookaheadConfig.for_controller`` of the controller).
         text_encoder: an already loaded encoder (it must be the controller's) instead of loading
             the one the controller's checkpoint names.
 
@@ -259,9 +259,7 @@ def train_lookahead(
         text_encoder = load_text_encoder(record["name"], None, config.device)
     check_text_encoder(ctrl_ckpt, text_encoder, ctrl_path)
     c = controller.config
-    model_config = model_config or LookaheadConfig(
-        hidden=c.hidden, text_proj=c.text_proj, num_slots=c.num_slots
-    )
+    model_config = model_config or LookaheadConfig.for_controller(c)
     head = LookaheadHead(model_config).to(config.device)
     head.check_controller(controller)
     tqdm.write(f"lookahead: distilling {ctrl_path}")

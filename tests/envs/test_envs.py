@@ -477,9 +477,7 @@ def test_lookahead_argument_selects_the_streams_look_ahead(gen):
         _make(gen, lookahead="fast")
     with pytest.raises(ValueError, match="lookahead must be 'exact' or 'head'"):
         _make(gen, lookahead="head").reset(seed=0)  # these weights have no head
-    gen.pipeline.lookahead = LookaheadHead(
-        LookaheadConfig(hidden=c.hidden, text_proj=c.text_proj, width=8, layers=1)
-    )
+    gen.pipeline.lookahead = LookaheadHead(LookaheadConfig.for_controller(c, width=8, layers=1))
     try:
         modes = {}
         for mode in ("auto", "head", "exact"):

@@ -6,10 +6,12 @@ import numpy as np
 
 from motion_env.evaluation.metrics import joint_acceleration
 from motion_env.generation.feet import (
+    ANKLE_MIN_ANGLE,
     FOOT_BLEND,
     LEGS,
     TOE_HINT_LENGTH,
     FootPinner,
+    ankle_room,
     release_fade,
     soft_reach,
     two_bone_ik,
@@ -181,3 +183,37 @@ def test_a_straight_but_short_decoded_arm_bends_its_elbow_one_way() -> None:
     # It bends back (-z for this pose), every frame; noise still wobbles it a few cm, no flip.
     assert np.all(side[:, 2] < -0.02)
     assert np.linalg.norm(np.diff(rebuilt[:, elbow], axis=0), axis=-1).max() < 0.1
+
+
+def _shin_foot(out: np.ndarray, leg: int) -> np.ndarray:
+    _, knee, ankle, toe = LEGS[leg]
+    u, v = out[:, knee] - out[:, ankle], out[:, toe] - out[:, ankle]
+    cos = (u * v).sum(-1) / np.linalg.norm(u, axis=-1) / np.linalg.norm(v, axis=-1)
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
+def test_a_pin_gives_way_before_the_ankle_bends_beyond_its_range() -> None:
+    """The body drifts forwards on 3 cm a frame over planted feet (a decoded jump's crouch does):
+    held where it landed, a foot would leave the shin leaning ever further over it; the pin holds
+    while the shin-foot angle stays at least ANKLE_MIN_ANGLE, then gives way smoothly."""
+    n = 30
+    joints = np.repeat(_pose()[None], n, axis=0)
+    joints[..., 2] += 0.03 * np.arange(n)[:, None]
+    assert _shin_foot(joints, 0)[0] > ANKLE_MIN_ANGLE + 3.0
+    out = FootPinner(1).apply(0, joints, np.ones((n, 4))).astype(np.float64)
+    assert (_shin_foot(out, 0) >= ANKLE_MIN_ANGLE - 0.5).all()
+    step = np.linalg.norm(np.diff(out[:, LEGS[0][2]][:, [0, 2]], axis=0), axis=-1)
+    assert step[:2].max() < 1e-4  # it holds while the leg allows
+    assert step[-10:].min() > 0.02  # then the foot goes with the body
+    assert joint_acceleration(out).max() < 15.0  # m/s^2: without a jolt
+    pinner = FootPinner(1)  # the stream's tokens give the same
+    tokens = [
+        pinner.apply(0, joints[f : f + 4], np.ones((len(joints[f : f + 4]), 4))) for f in range(0, n, 4)
+    ]
+    np.testing.assert_allclose(np.concatenate(tokens), out, atol=1e-6)
+
+
+def test_ankle_room_takes_the_whole_correction_where_the_leg_allows() -> None:
+    rows = np.repeat(_pose()[None], 3, axis=0)
+    offset = np.array([[0.0, 0.02], [0.0, -0.02], [0.02, 0.0]])
+    np.testing.assert_array_equal(ankle_room(rows, 0, offset), 1.0)

@@ -10,7 +10,14 @@ import numpy as np
 import pytest
 import torch
 
-from motion_env.generation.closed_form import FADE, causal_field, residual_field, solve_limbs
+from motion_env.generation.closed_form import (
+    FADE,
+    PLANT_WEIGHT,
+    causal_field,
+    residual_field,
+    smooth_field,
+    solve_limbs,
+)
 from motion_env.generation.feet import two_bone_ik
 from motion_env.generation.recompose import local_pose_from_features, recompose
 from motion_env.generation.torch_body import frame_yaw, local_pose_torch, place_on_path_torch
@@ -288,3 +295,47 @@ def test_bent_root_does_not_jump_at_the_start_or_spin_for_a_side_step() -> None:
     bent = bend_root(path, joints, targets, None)
     np.testing.assert_allclose(bent[[60, 63]][:, :2], targets[[60, 63], 0][:, [0, 2]], atol=1e-5)
     assert np.abs(np.diff(bent[:, 2])).max() < 0.15  # radians per frame: no spin
+
+
+def test_smooth_field_keeps_exact_frames_and_rounds_off_a_held_step() -> None:
+    # A foot planted over frames 20-34 holds its correction (0), a target at frame 37 asks 0.4 m:
+    # residual_field jumps there in 2 frames; smoothed, the step spreads over several frames.
+    known = np.zeros(60, bool)
+    known[37] = True
+    res = np.zeros((60, 3))
+    res[37] = [0.4, 0.0, -0.2]
+    hold = np.zeros(60, bool)
+    hold[20:35] = True
+    known_hold = known.copy()
+    known_hold[25] = True  # the planted stretch keeps its (zero) correction
+    raw = residual_field(known_hold, res, hold=hold)
+    smooth = smooth_field(raw, known_hold, np.where(hold, PLANT_WEIGHT, 1.0), 4.0)
+    np.testing.assert_allclose(smooth[known_hold], raw[known_hold], atol=1e-6)
+    acc = lambda f: np.abs(np.diff(f, 2, axis=0)).max()  # noqa: E731
+    assert acc(smooth) < acc(raw) / 3
+    assert np.abs(smooth[20:30]).max() < 0.04  # the planted foot gives way by a tenth at most
+    # Nothing to smooth: a zero field, or one given at every frame, comes back as it was.
+    assert not smooth_field(np.zeros((60, 3)), known, np.ones(60), 4.0).any()
+    every = np.random.default_rng(0).normal(size=(60, 3))
+    np.testing.assert_array_equal(smooth_field(every, np.ones(60, bool), np.ones(60), 4.0), every)
+
+
+def test_leg_correction_next_to_a_plant_does_not_pop(walk, monkeypatch) -> None:
+    """A correction held over a plant and joined linearly to a target a few frames later jumped."""
+    import motion_env.generation.closed_form as closed_form
+
+    targets = np.full(walk.shape, np.nan, np.float32)
+    ankle = JOINT_INDEX["left_ankle"]
+    # The foot is planted on its target (frames 20-34), and 4 frames later asked 27 cm away.
+    targets[25, ankle] = walk[25, ankle]
+    targets[38, ankle] = walk[38, ankle] + [0.25, 0.05, 0.1]
+    planted = np.zeros((len(walk), 2), bool)
+    planted[20:35, 0] = True
+    out = solve_limbs(walk, targets, [], planted)
+    monkeypatch.setattr(closed_form, "SMOOTH_FRAMES", 0.0)
+    unsmoothed = solve_limbs(walk, targets, [], planted)
+    for f in (25, 38):
+        assert np.linalg.norm(out[f, ankle] - targets[f, ankle]) < 1e-3
+    acc = lambda j: np.abs(np.diff(j[:, ankle] - walk[:, ankle], 2, axis=0)).max()  # noqa: E731
+    assert acc(out) < acc(unsmoothed) / 2
+    np.testing.assert_allclose(bone_lengths(out), bone_lengths(walk), atol=1e-4)

@@ -28,7 +28,7 @@ from motion_env.training.lookahead import LookaheadTrainConfig, distill_pairs, o
 
 def _head_for(controller: PathController, **kw) -> LookaheadHead:
     c = controller.config
-    cfg = LookaheadConfig(hidden=c.hidden, text_proj=c.text_proj, num_slots=c.num_slots, **kw)
+    cfg = LookaheadConfig.for_controller(c, **kw)
     torch.manual_seed(0)
     return LookaheadHead(cfg)
 
@@ -40,9 +40,9 @@ def gen(random_generator: MotionGenerator) -> MotionGenerator:
 
 def test_config_is_checked() -> None:
     with pytest.raises(ValueError, match="horizon"):
-        LookaheadConfig(horizon=0)
+        LookaheadConfig(input_dim=10, horizon=0)
     with pytest.raises(ValueError, match="width"):
-        LookaheadConfig(width=-3)
+        LookaheadConfig(input_dim=10, width=-3)
 
 
 def test_predict_shapes_and_the_start_frame(gen: MotionGenerator) -> None:
@@ -89,7 +89,7 @@ def test_checkpoint_round_trip_and_controller_check(gen: MotionGenerator, tmp_pa
     with pytest.raises(ValueError, match="another controller"):
         load_lookahead(tmp_path, other)
     bigger = PathController(ControllerConfig(text_dim=ctrl.config.text_dim, hidden=ctrl.config.hidden + 1))
-    with pytest.raises(ValueError, match="hidden, text_proj, num_slots"):
+    with pytest.raises(ValueError, match="numbers of a controller"):
         load_lookahead(tmp_path, bigger)
 
 

@@ -1,0 +1,184 @@
+"""The stream's root path ahead (:class:`~motion_env.generation.streaming.MotionStream`'s stage 2).
+
+A token covering frames ``f .. f + rate - 1`` needs the root path up to ``f + path_horizon``: the
+controller is rolled back to the last decoded frame after a change (:meth:`StreamPaths._restore`),
+rolled out (or, with a look-ahead head, rolled out for the token and predicted beyond it), and
+the controller's path is continued from the committed one and bent through the waypoints ahead
+(:meth:`StreamPaths._snap_ahead`). :func:`first_token_path_features` turns the paths of a batch
+into the GPT's path features of each row's next token at once.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import torch
+
+from motion_env.generation.recompose import route_anchors, spread_residuals
+from motion_env.generation.route_planning import plan_route
+from motion_env.models.path_features import D_PATH, LOOKAHEAD_FRAMES
+from motion_env.motion.kinematics import to_heading_frame
+from motion_env.motion.skeleton import FPS
+
+__all__ = ["CATCH_UP_TOKENS", "StreamPaths", "first_token_path_features"]
+
+# After a predicted look-ahead the roll-out advances by up to this many tokens' frames per token
+# until it is a horizon ahead again (a token's cost stays bounded while it catches up).
+CATCH_UP_TOKENS = 2
+
+
+def first_token_path_features(paths: np.ndarray, rate: int) -> np.ndarray:
+    """(N, T, 3) root paths (x, z, heading), each starting at a token's first frame -> (N, D_PATH)
+    float32: the path features of that token, the same numbers as
+    ``token_path_features(paths[n], rate)[0]`` (:mod:`motion_env.models.path_features`) row by
+    row, made for the whole batch at once (the stream needs only the next token's)."""
+    path = np.asarray(paths, np.float32).astype(np.float64)
+    n, t = path.shape[:2]
+    heading = np.unwrap(path[:, :, 2], axis=1)
+    out = np.empty((n, D_PATH))
+    for col, horizon in ((0, rate), (3, LOOKAHEAD_FRAMES)):
+        end = min(horizon, t - 1)  # clamped at the end of the path, as token_path_features does
+        frames = float(max(end, 1))
+        local = to_heading_frame(path[:, end, :2] - path[:, 0, :2], heading[:, 0])
+        turn = (heading[:, end] - heading[:, 0])[:, None]
+        out[:, col : col + 3] = np.concatenate([local, turn], axis=1) / frames * FPS
+    return out.astype(np.float32)
+
+
+class StreamPaths:
+    """The look-ahead half of :class:`~motion_env.generation.streaming.MotionStream` (its state is
+    the stream's: the controller's front and state ring, the routes and the changes waiting)."""
+
+    _pipe: Any
+    _front: Any
+    _states: Any
+    _control: Any
+    _head: Any
+    _routes: list[np.ndarray | None]
+    _pending: dict[int, tuple[np.ndarray | None, np.ndarray, int]]
+    _decoded: np.ndarray
+    _snapped: np.ndarray
+    _dirty: np.ndarray
+    _predicted: np.ndarray
+    _ring: int
+    _rate: int
+    _horizon: int
+    _lookahead: str
+    batch_size: int
+
+    def _restore(self, rows: np.ndarray) -> None:
+        """Roll the controller of `rows` back to their last decoded frame (after a caption/route change)."""
+        g = self._pipe
+        anchors = np.maximum(self._decoded[rows] - 1, 0)
+        slots = torch.as_tensor(anchors % self._ring, device=g.device)
+        rows_t = torch.as_tensor(rows, device=g.device)
+        self._front = self._states.restore(self._front, rows_t, torch.as_tensor(anchors, device=g.device))
+        changed = np.array([int(i) in self._pending for i in rows], bool)  # a new route waits
+        if changed.any():
+            moved = rows[changed]
+            for i in moved:
+                self._routes[i] = plan_route(*self._pending.pop(int(i)))
+            # planned routes (plan_route: checked (K, 3) float32) need no second check
+            self._front = g.controller.set_routes(
+                self._front, moved, [self._routes[i] for i in moved], checked=True
+            )
+            moved_t = torch.as_tensor(moved, device=g.device)
+            self._states.queue[moved_t, slots[torch.as_tensor(changed)]] = self._front.queue[moved_t]
+        self._dirty[rows] = False
+
+    def _advance(self, rows: np.ndarray, targets: np.ndarray) -> None:
+        """Step the controller of `rows` until each reaches its target frame, recording every frame."""
+        g = self._pipe
+        frames = self._front.frame.cpu().numpy()[rows]
+        need = targets - frames
+        for n in np.unique(need[need > 0]):
+            members = rows[need == n]
+            group = torch.as_tensor(members, device=g.device)
+            whole = len(members) == self.batch_size  # every row, in order (rows are sorted)
+            sub = self._front if whole else self._front.take(group)
+            first = sub.frame
+            sub, trace = g.controller.run(sub, int(n), trace=True)
+            self._states.record_trace(group, first, trace)
+            self._front = sub if whole else self._front.put(group, sub)
+
+    def _roll_ahead(self) -> None:
+        """Roll the controller out to the next token's last frame ahead of time, in the first step
+        after a token, so that the token's step does not carry it too (its p99). (In one run:
+        each run has a fixed cost, and shares spread over every step cost more in all.)
+
+        One character only (a single env; a batch's throughput gains nothing from it), while
+        nothing waits to be re-rolled (no change since the last token, no predicted look-ahead):
+        the controller's frames are the same numbers whether rolled out now or at the token, and
+        a change before the token rolls back to the last decoded frame as before. (In a batch, a
+        row rolled out early would be rolled out at the token in a smaller group than without,
+        and matrix products of another batch size differ in the last bits.)"""
+        if self.batch_size != 1 or self._dirty[0] or self._predicted[0]:
+            return
+        last = self._decoded + self._horizon  # the next token's last frame
+        if (self._front.frame.cpu().numpy() < last).all():
+            self._advance(np.arange(self.batch_size), last)
+
+    def _advance_with_head(
+        self, rows: np.ndarray, first: np.ndarray, last: np.ndarray, changed: np.ndarray
+    ) -> None:
+        """The look-ahead of `rows` up to frames `last`: rows `changed` roll out the token's frames,
+        rows catching up CATCH_UP_TOKENS tokens' frames, the others all; the head predicts the rest."""
+        front = self._front.frame.cpu().numpy()[rows]
+        end = first + self._rate - 1  # the token's last frame
+        behind = self._predicted[rows] & ~changed
+        target = np.where(behind, np.minimum(last, front + CATCH_UP_TOKENS * self._rate), last)
+        target = np.where(changed, end, np.maximum(target, end))
+        self._advance(rows, target)
+        short = target < last
+        self._predicted[rows] = short
+        if not short.any():
+            return
+        sub = self._front.take(torch.as_tensor(rows[short], device=self._pipe.device))
+        roots = self._head.predict(self._pipe.controller, sub).cpu().numpy()  # (N, H, 3)
+        self._states.record_roots(rows[short], target[short], roots, (last - target)[short])
+
+    def _snap_ahead(self, i: int, anchor: int, last: int) -> np.ndarray:
+        """Character i's root path over frames anchor..last, continuing its committed path.
+
+        The controller's path is shifted so that the anchor frame sits where it was emitted, then
+        bent (:func:`~motion_env.generation.recompose.spread_residuals`) through the waypoints
+        ahead that fall inside the window: timed ones after the anchor, untimed ones that the
+        path passes within SNAP_RADIUS (:func:`~motion_env.generation.recompose.route_anchors`).
+        """
+        frames = np.arange(anchor, last + 1)
+        raw = self._states.roots[i, frames % self._ring].astype(np.float64)
+        path = raw.copy()
+        path[:, :2] += self._snapped[i, anchor % self._ring, :2] - raw[0, :2]
+        route = self._routes[i]
+        pelvis = self._control.pelvis_anchors(i, anchor, last) if self._control.active(i) else None
+        if route is None and pelvis is None:
+            return path.astype(np.float32)
+        queue = int(self._states.queue[i, anchor % self._ring])
+        anchors = np.zeros((0, 3), np.float32)
+        if route is not None:
+            anchors = route_anchors(path, route[queue:], first=anchor, open_end=True)
+        if pelvis is not None and len(pelvis):  # pelvis targets bend the path like timed waypoints
+            anchors = anchors[~np.isin(anchors[:, 2], pelvis[:, 2])]
+            anchors = np.concatenate([anchors, pelvis])
+            anchors = anchors[np.argsort(anchors[:, 2], kind="stable")]
+        return spread_residuals(path, anchors).astype(np.float32)
+
+    def _plan_paths(self, rows: np.ndarray, first: np.ndarray) -> list[np.ndarray]:
+        """Each row's root path over frames first..first+horizon: committed up to the anchor (one
+        frame before the token), the controller's look-ahead snapped beyond it."""
+        changed = self._dirty[rows].copy()
+        if changed.any():
+            self._restore(rows[changed])
+        last = first + self._horizon
+        if self._lookahead == "head":
+            self._advance_with_head(rows, first, last, changed)
+        else:
+            self._advance(rows, last)
+            self._predicted[rows] = False
+        ahead = []
+        for n, i in enumerate(rows):
+            f = int(first[n])
+            anchor = max(f - 1, 0)
+            ahead.append(self._snap_ahead(int(i), anchor, f + self._horizon)[f - anchor :])
+        return ahead
