@@ -4,8 +4,8 @@ A token covering frames ``f .. f + rate - 1`` needs the root path up to ``f + pa
 controller is rolled back to the last decoded frame after a change (:meth:`StreamPaths._restore`),
 rolled out (or, with a look-ahead head, rolled out for the token and predicted beyond it), and
 the controller's path is continued from the committed one and bent through the waypoints ahead
-(:meth:`StreamPaths._snap_ahead`). :func:`first_token_path_features` turns the paths of a batch
-into the GPT's path features of each row's next token at once.
+(:meth:`StreamPaths._snap_ahead`). :func:`~motion_env.models.path_features.first_token_path_features`
+turns the paths of a batch into the GPT's path features of each row's next token at once.
 """
 
 from __future__ import annotations
@@ -17,33 +17,12 @@ import torch
 
 from motion_env.generation.recompose import route_anchors, spread_residuals
 from motion_env.generation.route_planning import plan_route
-from motion_env.models.path_features import D_PATH, LOOKAHEAD_FRAMES
-from motion_env.motion.kinematics import to_heading_frame
-from motion_env.motion.skeleton import FPS
 
-__all__ = ["CATCH_UP_TOKENS", "StreamPaths", "first_token_path_features"]
+__all__ = ["CATCH_UP_TOKENS", "StreamPaths"]
 
 # After a predicted look-ahead the roll-out advances by up to this many tokens' frames per token
 # until it is a horizon ahead again (a token's cost stays bounded while it catches up).
 CATCH_UP_TOKENS = 2
-
-
-def first_token_path_features(paths: np.ndarray, rate: int) -> np.ndarray:
-    """(N, T, 3) root paths (x, z, heading), each starting at a token's first frame -> (N, D_PATH)
-    float32: the path features of that token, the same numbers as
-    ``token_path_features(paths[n], rate)[0]`` (:mod:`motion_env.models.path_features`) row by
-    row, made for the whole batch at once (the stream needs only the next token's)."""
-    path = np.asarray(paths, np.float32).astype(np.float64)
-    n, t = path.shape[:2]
-    heading = np.unwrap(path[:, :, 2], axis=1)
-    out = np.empty((n, D_PATH))
-    for col, horizon in ((0, rate), (3, LOOKAHEAD_FRAMES)):
-        end = min(horizon, t - 1)  # clamped at the end of the path, as token_path_features does
-        frames = float(max(end, 1))
-        local = to_heading_frame(path[:, end, :2] - path[:, 0, :2], heading[:, 0])
-        turn = (heading[:, end] - heading[:, 0])[:, None]
-        out[:, col : col + 3] = np.concatenate([local, turn], axis=1) / frames * FPS
-    return out.astype(np.float32)
 
 
 class StreamPaths:

@@ -55,10 +55,10 @@ from motion_env.generation.request import (
 from motion_env.generation.request_controls import check_joint_targets, check_objectives
 from motion_env.generation.route_planning import plan_route
 from motion_env.generation.stream_control import StreamControl
-from motion_env.generation.stream_paths import CATCH_UP_TOKENS, StreamPaths, first_token_path_features
+from motion_env.generation.stream_paths import CATCH_UP_TOKENS, StreamPaths
 from motion_env.joint_targets import JointTargets
 from motion_env.models.controller_state import StateRing
-from motion_env.models.path_features import D_PATH
+from motion_env.models.path_features import D_PATH, first_token_path_features
 from motion_env.models.sampling import sample_tokens
 from motion_env.motion.skeleton import FEATURE_DIM, FOOT_CONTACT, NUM_JOINTS
 from motion_env.motion.trajectory import MAX_COORDINATE

@@ -13,7 +13,7 @@ from motion_env.motion.kinematics import to_heading_frame
 from motion_env.motion.skeleton import FPS
 from motion_env.motion.trajectory import validate_root_path
 
-__all__ = ["D_PATH", "LOOKAHEAD_FRAMES", "token_path_features"]
+__all__ = ["D_PATH", "LOOKAHEAD_FRAMES", "first_token_path_features", "token_path_features"]
 
 # Per-token path features (see token_path_features): velocity (lateral, forward) and turn rate over
 # the token, then the same over the next second.
@@ -23,18 +23,19 @@ LOOKAHEAD_FRAMES = FPS
 
 
 def _average_motion(path: np.ndarray, starts: np.ndarray, horizon: int) -> np.ndarray:
-    """Mean velocity (lateral, forward; m/s) and turn rate (rad/s) from each start over `horizon` frames.
+    """Mean velocity (lateral, forward; m/s) and turn rate (rad/s) from each start over `horizon`
+    frames: (..., T, 3) paths with unwrapped headings -> (..., N, 3).
 
     The horizon is clamped at the end of the path; the average is over the frames actually
     available (zero at the last frame), so a clamped window still describes the speed.
     """
-    n = path.shape[0]
+    n = path.shape[-2]
     ends = np.minimum(starts + horizon, n - 1)
     frames = np.maximum(ends - starts, 1).astype(np.float64)[:, None]
-    disp = path[ends, :2] - path[starts, :2]  # (N, 2) world
-    local = to_heading_frame(disp, path[starts, 2])  # (N, 2) lateral, forward
-    turn = (path[ends, 2] - path[starts, 2])[:, None]  # (N, 1), path heading is unwrapped
-    return np.concatenate([local, turn], axis=1) / frames * FPS
+    disp = path[..., ends, :2] - path[..., starts, :2]  # (..., N, 2) world
+    local = to_heading_frame(disp, path[..., starts, 2])  # (..., N, 2) lateral, forward
+    turn = (path[..., ends, 2] - path[..., starts, 2])[..., None]  # (..., N, 1)
+    return np.concatenate([local, turn], axis=-1) / frames * FPS
 
 
 def token_path_features(root_path: np.ndarray, rate: int) -> np.ndarray:
@@ -61,3 +62,16 @@ def token_path_features(root_path: np.ndarray, rate: int) -> np.ndarray:
     short = _average_motion(path, starts, rate)
     long = _average_motion(path, starts, LOOKAHEAD_FRAMES)
     return np.concatenate([short, long], axis=1).astype(np.float32)
+
+
+def first_token_path_features(paths: np.ndarray, rate: int) -> np.ndarray:
+    """The path features of the first token of each of N root paths at once: (N, T, 3) paths
+    (x, z, heading), each starting at a token's first frame -> (N, D_PATH) float32, row n equal to
+    ``token_path_features(paths[n], rate)[0]`` (the stream needs only each character's next
+    token's; its paths are checked where they are made)."""
+    path = np.asarray(paths, np.float32).astype(np.float64)
+    path[..., 2] = np.unwrap(path[..., 2], axis=-1)
+    first = np.zeros(1, dtype=np.int64)
+    short = _average_motion(path, first, int(rate))
+    long = _average_motion(path, first, LOOKAHEAD_FRAMES)
+    return np.concatenate([short, long], axis=-1)[:, 0].astype(np.float32)

@@ -12,8 +12,8 @@ import pytest
 
 from motion_env.generation.generator import MotionGenerator
 from motion_env.generation.height_plan import plan_heights
-from motion_env.generation.stream_paths import StreamPaths, first_token_path_features
-from motion_env.models.path_features import token_path_features
+from motion_env.generation.stream_paths import StreamPaths
+from motion_env.models.path_features import first_token_path_features, token_path_features
 
 ROUTE = [[0.0, 2.0, 30], [2.0, 4.0, 70], [4.0, 4.0, np.nan]]
 
