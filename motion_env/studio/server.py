@@ -92,6 +92,9 @@ class Studio:
         self._playing = threading.Event()
         self._playing.set()
         self._step_request = threading.Event()
+        # Held while a frame is made: a pause waits for the frame in flight, so once
+        # set_playing(False) returns the episode stands still (re-entrant: a frame may pause).
+        self._frame_lock = threading.RLock()
         self._stop = threading.Event()
         self._restart = threading.Event()
         self._thread: threading.Thread | None = None
@@ -157,6 +160,8 @@ class Studio:
             self._playing.set()
         else:
             self._playing.clear()
+            with self._frame_lock:  # the frame in flight, if any, ends first
+                pass
         self.panel.show_playing(playing)
 
     def step_once(self) -> None:
@@ -192,7 +197,10 @@ class Studio:
             if self._restart.is_set():
                 self._restart.clear()
                 due = now
-            self._frame()
+            with self._frame_lock:
+                if not (self.playing or stepping):
+                    continue  # paused while this tick waited
+                self._frame()
             done = time.perf_counter()
             if self.playing:
                 self.frames_played += 1
