@@ -61,7 +61,6 @@ from motion_env.models.controller_state import StateRing
 from motion_env.models.path_features import D_PATH, first_token_path_features
 from motion_env.models.sampling import sample_tokens
 from motion_env.motion.skeleton import FEATURE_DIM, FOOT_CONTACT, NUM_JOINTS
-from motion_env.motion.trajectory import MAX_COORDINATE
 from motion_env.objectives import HeightLimit
 
 __all__ = ["CATCH_UP_TOKENS", "MotionStream"]
@@ -240,10 +239,9 @@ class MotionStream(StreamPaths):
             raise ValueError(f"points must have shape ({len(rows)}, 2) (one x, z per row), got {pts.shape}")
         if len(np.unique(rows)) != len(rows) or ((rows < 0) | (rows >= self.batch_size)).any():
             raise IndexError(f"rows must be distinct indices in [0, {self.batch_size}), got {rows.tolist()}")
-        ok = np.isfinite(pts).all(axis=1) & (np.abs(pts).max(axis=1, initial=0.0) <= MAX_COORDINATE)
-        if not ok.all():
-            check_route(pts[~ok][:1])  # raises the error set_waypoints gives for that point
-        routes = np.concatenate([pts, np.full((len(rows), 1), np.nan)], axis=1).astype(np.float32)
+        if not len(rows):
+            return
+        routes = check_route(pts)  # the points as N untimed one-point routes: checked together
         for n, i in enumerate(rows.tolist()):
             self._pending[i] = (routes[n : n + 1], self._root[i, :2].copy(), int(self._emitted[i]))
         self._dirty[rows] = True
