@@ -74,21 +74,18 @@ DRAG_STEP = 0.045
 _REPLANS = 4
 
 
-def _cap_flights(flight: np.ndarray, airborne: int) -> tuple[np.ndarray, int]:
-    """Flight flags (n,) without stretches longer than MAX_FLIGHT_FRAMES, as far as they are seen
-    (`airborne`: frames in the air just before these); returns them and the stretch's length at
-    the end."""
-    out = flight.copy()
-    count, start = airborne, 0
-    for t in range(len(flight) + 1):
-        if t < len(flight) and flight[t]:
-            count += 1
-            continue
-        if count > MAX_FLIGHT_FRAMES:
-            out[start:t] = False
-        if t < len(flight):
-            count, start = 0, t + 1
-    return out, count
+def _cap_flights(flight: np.ndarray, airborne: np.ndarray) -> np.ndarray:
+    """Flight flags (R, n) of R characters without stretches longer than MAX_FLIGHT_FRAMES, as far
+    as they are seen (`airborne` (R,): frames in the air just before these, which the first
+    stretch continues)."""
+    n = flight.shape[1]
+    t = np.arange(n)
+    # The frames each stretch lies between: the last frame on the ground before it (-1: none
+    # seen) and the first after it (n: none seen).
+    before = np.maximum.accumulate(np.where(flight, -1, t), axis=1)
+    after = np.minimum.accumulate(np.where(flight, n, t)[:, ::-1], axis=1)[:, ::-1]
+    length = after - before - 1 + np.where(before < 0, np.asarray(airborne)[:, None], 0)
+    return flight & (length <= MAX_FLIGHT_FRAMES)
 
 
 class PhysicsFilter:
@@ -198,13 +195,11 @@ class PhysicsFilter:
         a landing or a take-off; each row keeps its own state (floating estimate, flight caps,
         history)."""
         r, n = com.shape
-        raw, flights = np.empty((r, n)), np.empty((r, n), dtype=bool)
-        for k, i in enumerate(rows):
-            floating = self._float(int(i), support_gap(soles[k], planted[k]))
-            # The body is wanted standing on its planted feet, and raised where a foot would still
-            # be below the floor (a landing the flags have not seen: a straight leg cannot shorten).
-            raw[k] = com[k] - floating + np.maximum(floating - soles[k].min(axis=1), 0.0)
-            flights[k], _ = _cap_flights(flight[k], int(self.airborne[i]))
+        floating = self._float(rows, support_gap(soles.reshape(-1, 2), planted.reshape(-1, 2)).reshape(r, n))
+        # The body is wanted standing on its planted feet, and raised where a foot would still be
+        # below the floor (a landing the flags have not seen: a straight leg cannot shorten).
+        raw = com - floating + np.maximum(floating - soles.min(axis=2), 0.0)
+        flights = _cap_flights(flight, self.airborne[rows])
         support = np.where(planted.any(axis=2, keepdims=True), planted, True)
         settled = np.zeros((r, n), dtype=bool)  # frames found on the floor: they stay there
         planned, todo, seen = np.empty((r, n)), np.ones(r, dtype=bool), self.seen[rows]
@@ -232,25 +227,22 @@ class PhysicsFilter:
                 end = first + _run_length(flights[k, first:])
                 flights[k, first:end], settled[k, first:end] = False, True
             flights |= aloft
-        for k, i in enumerate(rows):
-            self._remember(int(i), planned[k], raw[k], flights[k])
+        self._remember(rows, planned, raw, flights)
         return planned
 
-    def _keep(self, i: int) -> slice:
-        """Character i's frames in the history (the last `seen`)."""
-        return slice(self.HISTORY - int(self.seen[i]), self.HISTORY)
-
-    def _float(self, i: int, gap: np.ndarray) -> np.ndarray:
-        """(n,) how far character i's body floats above the floor in new frames: the support gap
-        (n,) (NaN: unknown) followed slowly from its first value, so a body that floats or sinks
-        throughout is moved, while a foot that lifts early or lands late (whose gap is noise
-        between frames) moves no more than itself."""
-        out = np.zeros(len(gap))
-        for t, g in enumerate(gap):
-            if not np.isnan(g):
-                last = self.floating[i]
-                self.floating[i] = g if np.isnan(last) else last + FLOAT_RATE * (g - last)
-            out[t] = 0.0 if np.isnan(self.floating[i]) else self.floating[i]
+    def _float(self, rows: np.ndarray, gap: np.ndarray) -> np.ndarray:
+        """(R, n) how far the bodies of characters `rows` float above the floor in new frames: the
+        support gap (R, n) (NaN: unknown) followed slowly from its first value, so a body that
+        floats or sinks throughout is moved, while a foot that lifts early or lands late (whose
+        gap is noise between frames) moves no more than itself."""
+        out = np.zeros(gap.shape)
+        last = self.floating[rows]
+        for t in range(gap.shape[1]):
+            g = gap[:, t]
+            followed = np.where(np.isnan(last), g, last + FLOAT_RATE * (g - last))
+            last = np.where(np.isnan(g), last, followed)
+            out[:, t] = np.where(np.isnan(last), 0.0, last)
+        self.floating[rows] = last
         return out
 
     def _steps(
@@ -321,17 +313,24 @@ class PhysicsFilter:
             self.lift[rows] = np.where(dragged | settling, clearance[:, t], 0.0)
         return planted, clearance
 
-    def _remember(self, i: int, heights: np.ndarray, raw: np.ndarray, flight: np.ndarray) -> None:
-        """Keep character i's last frames: the planned heights (:meth:`apply_rows` puts in the
-        placed ones), the wanted heights, and flight."""
-        keep = self._keep(i)
-        n = min(keep.stop - keep.start + len(heights), self.HISTORY)
-        self.past[i, -n:] = np.concatenate([self.past[i, keep], heights])[-n:]
-        self.past_raw[i, -n:] = np.concatenate([self.past_raw[i, keep], raw])[-n:]
-        self.past_flight[i, -n:] = np.concatenate([self.past_flight[i, keep], flight])[-n:]
-        self.seen[i] = n
-        trailing = _run_length(flight[::-1])
-        self.airborne[i] = self.airborne[i] + trailing if trailing == len(flight) else trailing
+    def _remember(self, rows: np.ndarray, heights: np.ndarray, raw: np.ndarray, flight: np.ndarray) -> None:
+        """Keep the last frames of characters `rows`: the planned heights (R, n) (:meth:`apply_rows`
+        puts in the placed ones), the wanted heights and flight."""
+        m = heights.shape[1]
+        seen = self.seen[rows]
+        for h in np.unique(seen):  # rows with as many frames in the history go together
+            sel = seen == h
+            at, n = rows[sel], min(int(h) + m, self.HISTORY)
+            keep = slice(self.HISTORY - int(h), self.HISTORY)
+            self.past[at, -n:] = np.concatenate([self.past[at, keep], heights[sel]], axis=1)[:, -n:]
+            self.past_raw[at, -n:] = np.concatenate([self.past_raw[at, keep], raw[sel]], axis=1)[:, -n:]
+            self.past_flight[at, -n:] = np.concatenate([self.past_flight[at, keep], flight[sel]], axis=1)[
+                :, -n:
+            ]
+            self.seen[at] = n
+        # Frames in the air at the end: a stretch that fills the new frames continues the past's.
+        trailing = np.where(flight.all(axis=1), m, np.argmin(flight[:, ::-1], axis=1))
+        self.airborne[rows] = np.where(trailing == m, self.airborne[rows] + trailing, trailing)
 
 
 def _norm(v: np.ndarray) -> np.ndarray:

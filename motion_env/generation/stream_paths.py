@@ -81,23 +81,6 @@ class StreamPaths:
             self._states.record_trace(group, first, trace)
             self._front = sub if whole else self._front.put(group, sub)
 
-    def _roll_ahead(self) -> None:
-        """Roll the controller out to the next token's last frame ahead of time, in the first step
-        after a token, so that the token's step does not carry it too (its p99). (In one run:
-        each run has a fixed cost, and shares spread over every step cost more in all.)
-
-        One character only (a single env; a batch's throughput gains nothing from it), while
-        nothing waits to be re-rolled (no change since the last token, no predicted look-ahead):
-        the controller's frames are the same numbers whether rolled out now or at the token, and
-        a change before the token rolls back to the last decoded frame as before. (In a batch, a
-        row rolled out early would be rolled out at the token in a smaller group than without,
-        and matrix products of another batch size differ in the last bits.)"""
-        if self.batch_size != 1 or self._dirty[0] or self._predicted[0]:
-            return
-        last = self._decoded + self._horizon  # the next token's last frame
-        if (self._front.frame.cpu().numpy() < last).all():
-            self._advance(np.arange(self.batch_size), last)
-
     def _advance_with_head(
         self, rows: np.ndarray, first: np.ndarray, last: np.ndarray, changed: np.ndarray
     ) -> None:
@@ -117,23 +100,19 @@ class StreamPaths:
         roots = self._head.predict(self._pipe.controller, sub).cpu().numpy()  # (N, H, 3)
         self._states.record_roots(rows[short], target[short], roots, (last - target)[short])
 
-    def _snap_ahead(self, i: int, anchor: int, last: int) -> np.ndarray:
-        """Character i's root path over frames anchor..last, continuing its committed path.
-
-        The controller's path is shifted so that the anchor frame sits where it was emitted, then
-        bent (:func:`~motion_env.generation.recompose.spread_residuals`) through the waypoints
-        ahead that fall inside the window: timed ones after the anchor, untimed ones that the
-        path passes within SNAP_RADIUS (:func:`~motion_env.generation.recompose.route_anchors`).
+    def _snap_ahead(self, i: int, anchor: int, path: np.ndarray, queue: int) -> np.ndarray:
+        """Character i's root path over frames anchor..anchor + len(path) - 1, continuing its
+        committed path: `path` (float64), the controller's shifted so that the anchor frame sits
+        where it was emitted, bent (:func:`~motion_env.generation.recompose.spread_residuals`)
+        through the waypoints ahead (from route index `queue` on) that fall inside the window:
+        timed ones after the anchor, untimed ones that the path passes within SNAP_RADIUS
+        (:func:`~motion_env.generation.recompose.route_anchors`).
         """
-        frames = np.arange(anchor, last + 1)
-        raw = self._states.roots[i, frames % self._ring].astype(np.float64)
-        path = raw.copy()
-        path[:, :2] += self._snapped[i, anchor % self._ring, :2] - raw[0, :2]
         route = self._routes[i]
+        last = anchor + len(path) - 1
         pelvis = self._control.pelvis_anchors(i, anchor, last) if self._control.active(i) else None
         if route is None and pelvis is None:
             return path.astype(np.float32)
-        queue = int(self._states.queue[i, anchor % self._ring])
         anchors = np.zeros((0, 3), np.float32)
         if route is not None:
             anchors = route_anchors(path, route[queue:], first=anchor, open_end=True)
@@ -155,9 +134,17 @@ class StreamPaths:
         else:
             self._advance(rows, last)
             self._predicted[rows] = False
-        ahead = []
-        for n, i in enumerate(rows):
-            f = int(first[n])
-            anchor = max(f - 1, 0)
-            ahead.append(self._snap_ahead(int(i), anchor, f + self._horizon)[f - anchor :])
-        return ahead
+        # The controller's paths from each anchor (one frame before the token; frame 0 at the
+        # start) to the token's last frame, shifted onto the committed path, for every row at once.
+        anchor = np.maximum(first - 1, 0)
+        count = first + self._horizon - anchor + 1  # frames anchor..first + horizon
+        slots = (anchor[:, None] + np.arange(int(count.max()))) % self._ring
+        raw = self._states.roots[rows[:, None], slots].astype(np.float64)  # (N, L, 3)
+        paths = raw.copy()
+        paths[..., :2] += (self._snapped[rows, anchor % self._ring, :2] - raw[:, 0, :2])[:, None]
+        rows_t = torch.as_tensor(rows, device=self._states.queue.device)
+        queue = self._states.queue[rows_t, torch.as_tensor(slots[:, 0], device=rows_t.device)].tolist()
+        return [
+            self._snap_ahead(int(i), int(anchor[n]), paths[n, : count[n]], queue[n])[first[n] - anchor[n] :]
+            for n, i in enumerate(rows)
+        ]

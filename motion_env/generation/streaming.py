@@ -8,9 +8,12 @@ frames) at a time:
   ``f + path_horizon`` (20 frames, one second: the long window of the path features), so the
   path controller runs up to 20 frames (1 s) ahead of the emitted frame. The first
   :meth:`MotionStream.step` pays for rolling it out; every later step that starts a token pays
-  for ``rate`` more controller frames (a single character rolls them out in the step after the
-  token instead, when nothing changed: the same frames, a lighter token step). The look-ahead's
-  code is :mod:`motion_env.generation.stream_paths`.
+  for ``rate`` more controller frames. The look-ahead's code is
+  :mod:`motion_env.generation.stream_paths`.
+- Work ahead (a single character, while nothing changed): the steps between tokens each do a share
+  of the next token, the controller's frames, then its path and token, then its decoding and
+  composing (:meth:`MotionStream._work_ahead`): the same numbers, a lighter token step. A change
+  before the token undoes them.
 - Control delay: a new caption or new waypoints act from the next token on, i.e. on the frames
   after those already decoded (at most ``rate`` frames, 0.2 s, after the call). The controller's
   look-ahead is rolled out again from the last decoded frame, so no emitted pose moves and the
@@ -34,6 +37,7 @@ frames) at a time:
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -67,6 +71,19 @@ __all__ = ["CATCH_UP_TOKENS", "MotionStream"]
 
 # Frames of decoded body kept as left context of the recompose.
 STREAM_CONTEXT_FRAMES = 40
+
+
+@dataclass
+class _EarlyToken:
+    """A single character's next token worked out before it is due (:meth:`MotionStream._work_ahead`);
+    `undo` puts back what that changed (:meth:`MotionStream._discard_early`)."""
+
+    ahead: list[np.ndarray]
+    tokens: torch.Tensor
+    undo: tuple[Any, ...]
+    body: np.ndarray | None = None
+    joints: np.ndarray | None = None
+    paths: np.ndarray | None = None
 
 
 class MotionStream(StreamPaths):
@@ -145,6 +162,7 @@ class MotionStream(StreamPaths):
         if self._head is not None and self._head.config.horizon < self._horizon:
             raise ValueError(f"look-ahead head horizon {self._head.config.horizon} < {self._horizon} frames")
         self._lookahead = "exact" if self._head is None else "head"
+        self._early: _EarlyToken | None = None  # one character's next token, worked out ahead
 
         emb = g.encode_text(self._texts)
         self._cache = g.gpt.new_cache(emb, g.sampling.guidance)
@@ -187,6 +205,7 @@ class MotionStream(StreamPaths):
     def lookahead(self, mode: str) -> None:
         if mode not in ("exact", "head") or (mode == "head" and self._head is None):
             raise ValueError(f"lookahead must be 'exact' or 'head' (needs a lookahead.pt), got {mode!r}")
+        self._discard_early()
         self._lookahead = mode
 
     # ------------------------------------------------------------------ steering
@@ -201,6 +220,7 @@ class MotionStream(StreamPaths):
         """Change the caption of one character (`index`) or of all (None) from the next token on."""
         text = check_text(text)
         rows = self._rows(index)
+        self._discard_early()
         g = self._pipe
         emb = g.encode_text([text])  # (1, D)
         self._front = g.controller.set_text(
@@ -219,7 +239,9 @@ class MotionStream(StreamPaths):
                 episode; None removes the route (the character follows the caption).
         """
         route = check_route(waypoints)
-        for i in self._rows(index):
+        rows = self._rows(index)
+        self._discard_early()
+        for i in rows:
             # Feasible from where the character is now (times are frames of its episode).
             where, frame = self._root[i, :2].copy(), int(self._emitted[i])
             self._pending[int(i)] = (check_feasible(route, where, self.infeasible, frame), where, frame)
@@ -242,6 +264,7 @@ class MotionStream(StreamPaths):
         if not len(rows):
             return
         routes = check_route(pts)  # the points as N untimed one-point routes: checked together
+        self._discard_early()
         for n, i in enumerate(rows.tolist()):
             self._pending[i] = (routes[n : n + 1], self._root[i, :2].copy(), int(self._emitted[i]))
         self._dirty[rows] = True
@@ -276,6 +299,7 @@ class MotionStream(StreamPaths):
         # means the same frames for every character and is checked once.
         per_row = first_frame is None and targets is not None and not isinstance(targets, JointTargets)
         checked = None if per_row else check_joint_targets(targets, None, "joint_targets", first_frame or 0)
+        self._discard_early()
         for i in rows:
             if per_row:
                 checked = check_joint_targets(targets, None, "joint_targets", int(self._emitted[i]))
@@ -296,7 +320,9 @@ class MotionStream(StreamPaths):
                 "(MotionGenerator.generate), "
                 "or plan the route around obstacles (policies.AStarPolicy)"
             )
-        for i in self._rows(index):
+        rows = self._rows(index)
+        self._discard_early()
+        for i in rows:
             self._control.limits[int(i)] = list(objs)
 
     def control_summary(self, index: int = 0) -> str:
@@ -318,6 +344,7 @@ class MotionStream(StreamPaths):
         route = plan_route(
             check_feasible(check_route(waypoints), start_arr[:2], self.infeasible), start_arr[:2]
         )
+        self._discard_early()
         g = self._pipe
         emb = g.encode_text([text])
         sub = g.init_controller(emb, [route], start_arr[None], [self._ctrl_gens[i]], paced=False)
@@ -364,30 +391,75 @@ class MotionStream(StreamPaths):
         self._buffer_pos[rows] += 1
         self._emitted[rows] += 1
         if not len(need) and len(rows) == self.batch_size:
-            self._roll_ahead()  # the next token's roll-out, spread over the steps before it
+            self._work_ahead()  # a share of the next token's work, spread over the steps before it
         return out
 
     # ------------------------------------------------------------------ internals
     def _produce(self, rows: np.ndarray) -> None:
         """Decode the next token of each character in `rows` and fill their frame buffers: the
-        pipeline's stages in their order (:mod:`motion_env.generation.pipeline`), for one token."""
+        pipeline's stages in their order (:mod:`motion_env.generation.pipeline`), for one token
+        (of a single character, the stages :meth:`_work_ahead` did are not done again)."""
         first = self._decoded[rows]  # (N,) first frame of the new token
-        ahead = self._plan_paths(rows, first)  # 2. path (1. text ran in set_text / reset)
-        tokens = self._sample_tokens(rows, ahead)  # 3. tokens
-        body = self._pipe.decode_next(self._decoder, tokens, rows)  # 4. decode
-        joints, paths = self._compose(rows, first, body, ahead)  # 5. compose
+        early, self._early = self._early, None
+        if early is None:
+            ahead = self._plan_paths(rows, first)  # 2. path (1. text ran in set_text / reset)
+            early = _EarlyToken(ahead, self._sample_tokens(rows, ahead), ())  # 3. tokens
+        if early.body is None:
+            self._decode_compose(rows, early)  # 4. decode, 5. compose
+        ahead, body, joints, paths = early.ahead, early.body, early.joints, early.paths
         pinned = self._feet.apply_rows(rows, joints, body[:, :, FOOT_CONTACT])  # 6. feet and physics
         if self._physics is not None:
             pinned = self._physics.apply_rows(rows, pinned, body[:, :, FOOT_CONTACT])
+        slots = (first[:, None] + np.arange(self._rate)) % self._ring  # (N, rate) the token's frames
+        self._snapped[rows[:, None], slots] = np.stack([a[: self._rate] for a in ahead])
+        self._buffer[rows], self._buffer_root[rows] = pinned, paths
         for n, i in enumerate(rows):
-            f = int(first[n])
-            self._snapped[i, np.arange(f, f + self._rate) % self._ring] = ahead[n][: self._rate]
-            self._buffer[i] = pinned[n]
             if self._control.active(int(i)):  # 7. refine (causal, closed form)
+                f = int(first[n])
                 self._buffer[i] = self._control.apply(int(i), f, self._buffer[i], body[n][:, FOOT_CONTACT])
-            self._buffer_root[i] = paths[n]
         self._decoded[rows] += self._rate
         self._buffer_pos[rows] = 0
+
+    def _decode_compose(self, rows: np.ndarray, early: _EarlyToken) -> None:
+        """Stages 4 and 5 of the token whose path and tokens `early` holds (into `early`)."""
+        early.body = self._pipe.decode_next(self._decoder, early.tokens, rows)
+        early.joints, early.paths = self._compose(rows, self._decoded[rows], early.body, early.ahead)
+
+    def _work_ahead(self) -> None:
+        """One share of a single character's next token, in each step between tokens, so that the
+        token's step does not carry it all (the p99 of ``env.step``): the controller's roll-out,
+        then the path ahead and the token (stages 2-3), then its decoding and composing (4-5);
+        the feet, physics and joint targets (6-7) stay in the token's step.
+
+        The same numbers as at the token: while nothing waits to be re-rolled (no change since the
+        last token, no predicted look-ahead) the inputs of these stages are final; a change before
+        the token undoes them (:meth:`_discard_early`). (Not in a batch: a row worked out early
+        would run in a smaller group, whose matrix products differ in the last bits.)"""
+        if self.batch_size != 1 or self._dirty[0] or self._predicted[0]:
+            return
+        rows, first = np.zeros(1, np.int64), self._decoded.copy()
+        last = first + self._horizon  # the next token's last frame
+        if (self._front.frame.cpu().numpy() < last).any():
+            self._advance(rows, last)  # the controller's roll-out
+        elif self._early is None:
+            # A GPT step replaces the cache fields (B = 1: none changes in place): a shallow copy keeps them.
+            undo = (replace(self._cache), self._tok_gens[0].get_state(), self._prev.clone())
+            undo += (self._decoder.state(),)
+            ahead = self._plan_paths(rows, first)
+            self._early = _EarlyToken(ahead, self._sample_tokens(rows, ahead), undo)
+        elif self._early.body is None:
+            self._decode_compose(rows, self._early)
+
+    def _discard_early(self) -> None:
+        """Undo the work done ahead for the next token (:meth:`_work_ahead`): a change arrived
+        before the token was due, which the token must see. (The frames it wrote into the history
+        of decoded features are written again before they are read.)"""
+        early, self._early = self._early, None
+        if early is None:
+            return
+        self._cache, gen_state, self._prev, decoder = early.undo
+        self._tok_gens[0].set_state(gen_state)
+        self._decoder.restore(decoder)
 
     def _sample_tokens(self, rows: np.ndarray, ahead: list[np.ndarray]) -> torch.Tensor:
         """One GPT step for the whole batch, in which only `rows` advance: (N,) sampled tokens."""
@@ -412,15 +484,14 @@ class MotionStream(StreamPaths):
         window = np.minimum(first + rate, self._window)  # frames begin..f+rate-1, begin >= 0
         joints = np.zeros((len(rows), rate, NUM_JOINTS, 3), np.float32)
         paths = np.zeros((len(rows), rate, 3), np.float32)
+        self._features[rows[:, None], (first[:, None] + np.arange(rate)) % ring] = body
         for length in np.unique(window):
             sel = np.nonzero(window == length)[0]
-            feats, roots = [], []
-            for n in sel:
-                i, f = rows[n], int(first[n])
-                self._features[i, np.arange(f, f + rate) % ring] = body[n]
-                span = np.arange(f + rate - length, f + rate)
-                feats.append(self._features[i, span % ring])
-                roots.append(np.concatenate([self._snapped[i, span[:-rate] % ring], ahead[n]]))
-            j, path = self._pipe.compose(np.stack(feats), np.stack(roots), int(length), int(length) - rate)
+            at = rows[sel, None]
+            span = (first[sel, None] + rate - length + np.arange(length)) % ring  # (S, length)
+            roots = np.concatenate(
+                [self._snapped[at, span[:, :-rate]], np.stack([ahead[n] for n in sel])], axis=1
+            )
+            j, path = self._pipe.compose(self._features[at, span], roots, int(length), int(length) - rate)
             joints[sel], paths[sel] = j, path
         return joints, paths

@@ -301,6 +301,12 @@ class DecoderStream:
     left padding), so a token costs the decoder's work on ``rate`` frames instead of a re-decode of
     its whole receptive field. :meth:`step` gives what ``decode(all codes so far)[:, -rate:]``
     gives, to float rounding (the tests hold it to 1e-5).
+
+    The stream runs time-major, (N, t, C): each convolution is one matrix product of its taps side
+    by side (N * t, kernel * C) with its weight laid out as (C_out, kernel * C), made once here
+    from the decoder's weights (a stream sees the weights as they were when it was made). On a
+    few frames of many rows that is faster than ``conv1d`` on a CPU: a token of 64 rows 2-2.5x,
+    of one row about 1.3x (one thread).
     """
 
     def __init__(self, vqvae: VQVAE, batch: int) -> None:
@@ -308,11 +314,32 @@ class DecoderStream:
         self.batch = int(batch)
         self._layers = list(vqvae.decoder)
         ref = vqvae.quantizer.codebook
-        # One cache per causal conv (the ResBlocks' inner one included), in decoder order.
-        self._caches = [
-            torch.zeros(self.batch, conv.in_channels, conv.lookback, dtype=ref.dtype, device=ref.device)
-            for conv in self._convs()
+        convs = self._convs()
+        if any(conv.stride[0] != 1 for conv in convs):
+            raise ValueError("the decoder streams only stride-1 convolutions")
+        other = [
+            type(m).__name__
+            for m in self._layers
+            if not isinstance(m, (CausalConv1d, ResBlock, Upsample, nn.ReLU))
         ]
+        if other:
+            raise ValueError(
+                f"the decoder streams causal convs, ResBlocks, Upsample and ReLU only, not {other}"
+            )
+        # One cache per causal conv (the ResBlocks' inner one included), in decoder order: its
+        # last `lookback` inputs, (B, lookback, C).
+        self._caches = [
+            torch.zeros(self.batch, conv.lookback, conv.in_channels, dtype=ref.dtype, device=ref.device)
+            for conv in convs
+        ]
+        with torch.no_grad():
+            # (C_out, C_in, k) -> (C_out, k * C_in): tap j's inputs are columns j * C_in ...
+            self._weights = [
+                conv.weight.permute(0, 2, 1).reshape(conv.out_channels, -1).clone() for conv in convs
+            ]
+            self._mixes = [
+                m.mix.weight[:, :, 0].clone() for m in self._layers if isinstance(m, ResBlock)
+            ]  # the ResBlocks' 1x1 convs as (C_out, C_in)
 
     def _convs(self) -> list[CausalConv1d]:
         return [
@@ -329,6 +356,17 @@ class DecoderStream:
             else:
                 cache[torch.as_tensor(list(rows), dtype=torch.long, device=cache.device)] = 0.0
 
+    def state(self) -> list[torch.Tensor]:
+        """A copy of every row's history, for :meth:`restore` (undoing steps taken ahead of time)."""
+        return [cache.clone() for cache in self._caches]
+
+    def restore(self, state: list[torch.Tensor]) -> None:
+        """Put back the histories of :meth:`state` (every row)."""
+        if len(state) != len(self._caches) or any(a.shape != b.shape for a, b in zip(state, self._caches)):
+            raise ValueError("restore() takes a state() of this DecoderStream")
+        for cache, saved in zip(self._caches, state):
+            cache.copy_(saved)
+
     @torch.no_grad()
     def step(self, codes: torch.Tensor, rows: Sequence[int] | None = None) -> torch.Tensor:
         """Decode the next token of `rows` (default: all, in order).
@@ -341,22 +379,25 @@ class DecoderStream:
         """
         index = torch.arange(self.batch) if rows is None else torch.as_tensor(list(rows), dtype=torch.long)
         index = index.to(self._caches[0].device)
-        x = self.vqvae.quantizer.codebook[codes.to(index.device)][:, :, None]  # (N, code_dim, 1)
-        n = 0
+        x = self.vqvae.quantizer.codebook[codes.to(index.device)][:, None, :]  # (N, 1, code_dim)
+        n = m = 0
         for layer in self._layers:
             if isinstance(layer, CausalConv1d):
                 x, n = self._conv(layer, x, index, n), n + 1
             elif isinstance(layer, ResBlock):
-                x, n = x + layer.mix(F.relu(self._conv(layer.conv, F.relu(x), index, n))), n + 1
-            else:  # ReLU, Upsample
-                x = layer(x)
-        return x.transpose(1, 2)
+                h = F.relu(self._conv(layer.conv, F.relu(x), index, n))
+                x, n, m = x + F.linear(h, self._mixes[m], layer.mix.bias), n + 1, m + 1
+            elif isinstance(layer, Upsample):
+                x = x.repeat_interleave(2, dim=1)  # time is dim 1 here
+            else:  # ReLU
+                x = F.relu(x)
+        return x  # (N, rate, feature_dim)
 
     def _conv(self, conv: CausalConv1d, x: torch.Tensor, index: torch.Tensor, n: int) -> torch.Tensor:
-        """`conv` on the new inputs `x` (N, C, t) after the cached ones; the cache moves on."""
-        if conv.stride[0] != 1:
-            raise ValueError("the decoder streams only stride-1 convolutions")
+        """`conv` on the new inputs `x` (N, t, C) after the cached ones; the cache moves on."""
         cache = self._caches[n]
-        full = torch.cat([cache[index], x], dim=-1)
-        cache[index] = full[:, :, full.shape[-1] - conv.lookback :]
-        return F.conv1d(full, conv.weight, conv.bias, dilation=conv.dilation)
+        full = torch.cat([cache[index], x], dim=1)  # (N, lookback + t, C)
+        cache[index] = full[:, full.shape[1] - conv.lookback :]
+        d, t = conv.dilation[0], x.shape[1]
+        taps = torch.cat([full[:, j * d : j * d + t] for j in range(conv.kernel_size[0])], dim=-1)
+        return F.linear(taps, self._weights[n], conv.bias)  # (N, t, C_out)

@@ -10,7 +10,8 @@ Fine-tuning the decoder alone (``init`` = a trained VQ-VAE, ``freeze_encoder``):
 the codebook stay as they are, so every clip keeps its tokens and a body GPT trained on them stays
 valid, while extra losses on the differences of the decoded joint positions (``vel_weight``,
 ``acc_weight``, ``jerk_weight``) teach the decoder to stop rippling at the token rate;
-``ripple_weight`` aims at that ripple alone (:func:`token_ripple`).
+``ripple_weight`` aims at that ripple alone (:func:`token_ripple`), and ``read_weight`` puts the
+decoder's capacity on the channels the generator builds its body from (:data:`READ_CHANNELS`).
 """
 
 from __future__ import annotations
@@ -21,11 +22,12 @@ from typing import Any
 
 import numpy as np
 import torch
+import torch.nn.functional as F
 
 from motion_env.models.checkpoint import config_from_dict, read_checkpoint
 from motion_env.models.normalizer import Normalizer
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
-from motion_env.motion.skeleton import NUM_JOINTS, RIC
+from motion_env.motion.skeleton import FOOT_CONTACT, NUM_JOINTS, RIC, ROOT_ROT_VEL
 from motion_env.motion.validation import NonNegativeFloat, PositiveFloat, PositiveInt
 from motion_env.training import loop
 from motion_env.training.config import TrainConfig
@@ -49,6 +51,7 @@ class VQVAETrainConfig(TrainConfig):
     jerk_weight: NonNegativeFloat = 0.0  # L1 loss on their third differences (jerk)
     ripple_weight: NonNegativeFloat = 0.0  # L1 loss on the token-periodic part of the acceleration error
     smooth_joints: str = "all"  # joints those losses apply to: "all", or "upper" (spine, head, arms)
+    read_weight: PositiveFloat = 1.0  # reconstruction weight of the channels the body is read from
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -71,6 +74,21 @@ SMOOTH_JOINTS = {
     "all": tuple(range(1, NUM_JOINTS)),
     "upper": (3, 6, 9, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21),
 }
+
+
+# The channels the generator builds its body from (:func:`motion_env.motion.features.features_to_joints`:
+# root velocities and height, the joints' positions) and its foot contacts. The rotations and local
+# velocities (192 of the 263 channels) are only targets of training; weighting what is read
+# (``read_weight`` > 1) gives the decoder's capacity to the body it actually puts out.
+READ_CHANNELS = np.r_[ROOT_ROT_VEL.start : RIC.stop, FOOT_CONTACT]
+
+
+def read_channel_loss(recon: torch.Tensor, target: torch.Tensor, weight: float) -> torch.Tensor:
+    """The extra reconstruction loss that makes each read channel weigh `weight` (others 1)."""
+    if weight == 1.0:
+        return recon.new_zeros(())
+    share = len(READ_CHANNELS) / recon.shape[-1]  # the model's own loss is a mean over all channels
+    return (weight - 1.0) * share * F.smooth_l1_loss(recon[..., READ_CHANNELS], target[..., READ_CHANNELS])
 
 
 def token_ripple(error: torch.Tensor, rate: int) -> torch.Tensor:
@@ -286,7 +304,8 @@ def train_vqvae(
         x = torch.stack([feats[i][o : o + window] for i, o in zip(idx, offs, strict=True)]).to(device)
         recon, _, losses = model(x)
         extra = derivative_losses(recon, x, config, model.rate)
-        losses["loss"] = losses["loss"] + extra.pop("smooth")
+        read = read_channel_loss(recon, x, config.read_weight)
+        losses["loss"] = losses["loss"] + extra.pop("smooth") + read
         opt.zero_grad(set_to_none=True)
         losses["loss"].backward()
         torch.nn.utils.clip_grad_norm_(params, 1.0)

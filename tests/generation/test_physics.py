@@ -15,8 +15,10 @@ from motion_env.generation.ground import (
 )
 from motion_env.generation.physics import (
     GRAVITY,
+    MAX_FLIGHT_FRAMES,
     STANCE_ACCELERATION,
     PhysicsFilter,
+    _cap_flights,
     apply_physics,
     plan_heights,
 )
@@ -259,3 +261,29 @@ def test_a_foot_dragged_while_flagged_is_lifted_but_a_landing_stays_planted() ->
     np.testing.assert_allclose(
         sole_heights(apply_physics(one.astype(np.float32), contacts).astype(np.float64))[:, 0], 0.0, atol=2e-3
     )
+
+
+def _capped_frame_by_frame(flight: np.ndarray, airborne: int) -> np.ndarray:
+    """MAX_FLIGHT_FRAMES applied by walking the frames: a stretch in the air longer than it (the
+    first one counting the `airborne` frames before it) is no flight."""
+    out, count, start = flight.copy(), airborne, 0
+    for t in range(len(flight) + 1):
+        if t < len(flight) and flight[t]:
+            count += 1
+            continue
+        if count > MAX_FLIGHT_FRAMES:
+            out[start:t] = False
+        count, start = 0, t + 1
+    return out
+
+
+def test_flights_are_capped_as_frame_by_frame() -> None:
+    rng = np.random.default_rng(5)
+    for n in (1, 4, 17, 40):
+        flight = rng.random((50, n)) < rng.uniform(0.3, 0.98, (50, 1))
+        flight[:5] = True  # all in the air, with and without a long past in the air
+        airborne = rng.integers(0, 2 * MAX_FLIGHT_FRAMES, 50)
+        want = np.stack([_capped_frame_by_frame(f, int(a)) for f, a in zip(flight, airborne)])
+        np.testing.assert_array_equal(_cap_flights(flight, airborne), want)
+    assert not _cap_flights(np.ones((1, MAX_FLIGHT_FRAMES + 1), bool), np.zeros(1, np.int64)).any()
+    assert _cap_flights(np.ones((1, MAX_FLIGHT_FRAMES), bool), np.zeros(1, np.int64)).all()

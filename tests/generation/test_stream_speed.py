@@ -2,7 +2,7 @@
 
 Batched height plans (:func:`plan_heights` of many characters), the next token's path features of a batch
 (:func:`first_token_path_features`), detours sent to many characters at once
-(:meth:`MotionStream.set_goals`) and the controller rolled out between tokens (one character).
+(:meth:`MotionStream.set_goals`) and a single character's next token worked out between tokens.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import pytest
 
 from motion_env.generation.generator import MotionGenerator
 from motion_env.generation.height_plan import plan_heights
-from motion_env.generation.stream_paths import StreamPaths
+from motion_env.generation.streaming import MotionStream
 from motion_env.models.path_features import first_token_path_features, token_path_features
 
 ROUTE = [[0.0, 2.0, 30], [2.0, 4.0, 70], [4.0, 4.0, np.nan]]
@@ -84,23 +84,42 @@ def test_set_goals_queues_what_set_waypoints_queues(random_generator: MotionGene
 
 def _frames(gen: MotionGenerator, steer: bool) -> np.ndarray:
     stream = gen.stream("a person walks", waypoints=[ROUTE], seed=4)
+    hand = np.full((30, 22, 3), np.nan, np.float32)
+    hand[20, 21] = [0.4, 1.5, 1.5]
     out = []
-    for t in range(45):
+    for t in range(53):
+        # Changes after a token's step, after the roll-out, after the path and token, after the
+        # decoding (the step before the next token): each undoes what was worked out ahead.
         if steer and t == 17:
             stream.set_waypoints([[3.0, 1.0]])
         if steer and t == 30:
             stream.set_text("a person jogs")
+        if steer and t == 35:
+            stream.set_joint_targets(hand)
+        if steer and t == 40:
+            stream.set_waypoints([[-1.0, 3.0], [0.0, 6.0]])
+        if steer and t == 47:
+            stream.reset(0, "a person waves", start=[1.0, 1.0, 0.5])
         out.append(stream.step())
     return np.stack(out)
 
 
 @pytest.mark.parametrize("steer", [False, True])
-def test_rolling_ahead_between_tokens_changes_no_frame(
+def test_working_ahead_between_tokens_changes_no_frame(
     random_generator: MotionGenerator, monkeypatch: pytest.MonkeyPatch, steer: bool
 ) -> None:
+    worked: list[bool] = []
+    work_ahead = MotionStream._work_ahead
+
+    def spy(self: MotionStream) -> None:
+        work_ahead(self)
+        worked.append(self._early is not None and self._early.body is not None)
+
+    monkeypatch.setattr(MotionStream, "_work_ahead", spy)
     ahead = _frames(random_generator, steer)
+    assert any(worked)  # whole tokens were decoded ahead of their step
     calls = []
-    monkeypatch.setattr(StreamPaths, "_roll_ahead", lambda self: calls.append(1))
+    monkeypatch.setattr(MotionStream, "_work_ahead", lambda self: calls.append(1))
     at_tokens = _frames(random_generator, steer)
-    assert calls  # the stream does ask to roll ahead between tokens
+    assert calls  # the stream does ask to work ahead between tokens
     np.testing.assert_array_equal(ahead, at_tokens)

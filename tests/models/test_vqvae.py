@@ -105,6 +105,21 @@ def test_decoder_stream_equals_full_decode_per_row(spread: VQVAE) -> None:
     torch.testing.assert_close(late, model.decode(codes[[1, 2], :4]), atol=1e-5, rtol=1e-5)
 
 
+def test_decoder_stream_restores_its_history(spread: VQVAE) -> None:
+    """Steps taken ahead of time and undone (the stream's work ahead) leave no trace."""
+    codes = torch.randint(0, 32, (2, 6))
+    stream = spread.decoder_stream(2)
+    for t in range(3):
+        stream.step(codes[:, t])
+    saved = stream.state()
+    want = stream.step(codes[:, 3])
+    stream.step(codes[:, 4])  # taken ahead, then undone
+    stream.restore(saved)
+    torch.testing.assert_close(stream.step(codes[:, 3]), want, atol=0.0, rtol=0.0)
+    with pytest.raises(ValueError, match="state"):
+        stream.restore(saved[:-1])
+
+
 def test_decoder_context_is_tight() -> None:
     model = tiny(4).eval()
     model.quantizer.codebook.normal_()

@@ -7,12 +7,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+import torch.nn.functional as F
 
 from motion_env.data.dataset import load_stats
 from motion_env.models.checkpoint import load_checkpoint, read_checkpoint, save_checkpoint
 from motion_env.models.normalizer import Normalizer
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
-from motion_env.training.vqvae import VQVAETrainConfig, derivative_losses, token_ripple, train_vqvae
+from motion_env.training.vqvae import (
+    READ_CHANNELS,
+    VQVAETrainConfig,
+    derivative_losses,
+    read_channel_loss,
+    token_ripple,
+    train_vqvae,
+)
 
 TINY_VQ = VQVAEConfig(width=16, code_dim=8, codebook_size=16, depth=1)
 FAST = dict(batch_size=4, window=32, progress=False)
@@ -130,6 +138,24 @@ def test_ripple_loss_sees_a_stalling_decoder_and_not_a_smooth_one() -> None:
     config = VQVAETrainConfig(ripple_weight=1.0)
     assert derivative_losses(stall, target, config)["ripple_l1"] > 1e-3
     assert derivative_losses(offset, target, config)["ripple_l1"] < 1e-6
+
+
+def test_read_channels_weigh_what_the_generator_reads() -> None:
+    # The body is built from the root channels and the joints' positions; the rotations and local
+    # velocities are not read, so an error there adds nothing, and one in a read channel adds
+    # (weight - 1) times its share of the model's all-channel mean.
+    assert READ_CHANNELS.tolist() == [*range(0, 67), 259, 260, 261, 262]
+    target = torch.zeros(2, 8, 263)
+    unread = target.clone()
+    unread[..., 67:259] = 0.5
+    read = target.clone()
+    read[..., 4:67] = 0.5
+    assert float(read_channel_loss(unread, target, 4.0)) == 0.0
+    assert float(read_channel_loss(read, target, 1.0)) == 0.0
+    expected = 3.0 * (71 / 263) * F.smooth_l1_loss(read[..., READ_CHANNELS], target[..., READ_CHANNELS])
+    assert torch.isclose(read_channel_loss(read, target, 4.0), expected)
+    with pytest.raises(ValueError, match="read_weight"):
+        VQVAETrainConfig(read_weight=0.0)
 
 
 def test_smoothness_options_are_checked() -> None:
