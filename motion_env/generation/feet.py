@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from motion_env.motion.rotations import qbetween, qrot
+from motion_env.motion.rotations import qbetween, qrot, vector_norm
 
 __all__ = [
     "ANKLE_BISECTIONS",
@@ -95,12 +95,12 @@ def soft_reach(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, goal: np.nd
     never locks straight, so it bends again smoothly where the goal comes back within reach. A
     goal within reach, and the decoded ankle itself, stay where they are.
     """
-    length = np.linalg.norm(knee - hip, axis=-1) + np.linalg.norm(ankle - knee, axis=-1)
+    length = vector_norm(knee - hip) + vector_norm(ankle - knee)
     band = FOOT_SOFTNESS * length
-    reach = np.minimum(np.maximum(FOOT_STRETCH * length, np.linalg.norm(ankle - hip, axis=-1) + band), length)
+    reach = np.minimum(np.maximum(FOOT_STRETCH * length, vector_norm(ankle - hip) + band), length)
     start = reach - band
     v = goal - hip
-    d = np.linalg.norm(v, axis=-1)
+    d = vector_norm(v)
     return hip + v * (soft_limit(d, start, band) / np.maximum(d, 1e-9))[:, None]
 
 
@@ -108,7 +108,7 @@ def _shin_foot_angle(knee: np.ndarray, ankle: np.ndarray, toe: np.ndarray) -> np
     """Angle (degrees) between shin and foot at the ankle: (N, 3) each -> (N,); it narrows as the
     ankle flexes toes-up (dorsiflexion)."""
     u, v = knee - ankle, toe - ankle
-    cos = (u * v).sum(-1) / np.maximum(np.linalg.norm(u, axis=-1) * np.linalg.norm(v, axis=-1), 1e-12)
+    cos = (u * v).sum(-1) / np.maximum(vector_norm(u) * vector_norm(v), 1e-12)
     return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
@@ -171,25 +171,25 @@ def two_bone_ik(
 
     All (N, 3); returns (new knee, new ankle).
     """
-    l1 = np.linalg.norm(knee - hip, axis=-1)
-    l2 = np.linalg.norm(ankle - knee, axis=-1)
+    l1 = vector_norm(knee - hip)
+    l2 = vector_norm(ankle - knee)
     to = target - hip
-    d = np.linalg.norm(to, axis=-1)
+    d = vector_norm(to)
     d_clamped = np.clip(d, np.abs(l1 - l2) + 1e-4, l1 + l2 - 1e-4)
     u = to / np.maximum(d, 1e-9)[:, None]
     leg = ankle - hip
-    axis0 = leg / np.maximum(np.linalg.norm(leg, axis=-1, keepdims=True), 1e-9)
+    axis0 = leg / np.maximum(vector_norm(leg, keepdims=True), 1e-9)
     bend = (knee - hip) - ((knee - hip) * axis0).sum(-1, keepdims=True) * axis0
     if bend_hint is not None:
-        hint_n = np.linalg.norm(bend_hint, axis=-1, keepdims=True)
+        hint_n = vector_norm(bend_hint, keepdims=True)
         bend = bend + hint_weight * bend_hint / np.maximum(hint_n, max(hint_length, 1e-9))
     pole = qrot(qbetween(axis0, u), bend)
     pole = pole - (pole * u).sum(-1, keepdims=True) * u
-    pole_n = np.linalg.norm(pole, axis=-1, keepdims=True)
+    pole_n = vector_norm(pole, keepdims=True)
     # A straight leg with no hint has no bend plane: bend the knee along the original shin.
     fallback = (ankle - knee) - ((ankle - knee) * u).sum(-1, keepdims=True) * u
     pole = np.where(pole_n > 1e-6, pole / np.maximum(pole_n, 1e-9), fallback)
-    pole = pole / np.maximum(np.linalg.norm(pole, axis=-1, keepdims=True), 1e-9)
+    pole = pole / np.maximum(vector_norm(pole, keepdims=True), 1e-9)
     a = (l1**2 - l2**2 + d_clamped**2) / (2 * d_clamped)
     h = np.sqrt(np.maximum(l1**2 - a**2, 0.0))
     new_knee = hip + a[:, None] * u + h[:, None] * pole
@@ -281,10 +281,10 @@ class FootPinner:
                 pin = pins[held, k]
                 fresh = np.isnan(pin[:, 0])
                 pin[fresh] = xz[fresh] + self.offset[rows[held], leg][fresh]  # where it is shown now
-                dist = np.linalg.norm(pin - xz, axis=-1)
+                dist = vector_norm(pin - xz)
                 creep = np.where(fresh, 0.0, np.minimum(FOOT_CREEP_RATE * dist, FOOT_CREEP))
                 moved = (1.0 - creep / np.maximum(dist, 1e-12))[:, None] * (pin - xz)
-                norm = np.linalg.norm(moved, axis=-1)
+                norm = vector_norm(moved)
                 far = norm > FOOT_MAX_OFFSET
                 moved[far] *= (FOOT_MAX_OFFSET / norm[far])[:, None]
                 cut = np.nonzero(check[held, t])[0]

@@ -14,6 +14,7 @@ import numpy as np
 
 from motion_env.generation.feet import LEGS, TOE_HINT_LENGTH, two_bone_ik
 from motion_env.motion.mass import centre_of_mass
+from motion_env.motion.rotations import vector_norm
 
 __all__ = [
     "FLAT_ANKLE_HEIGHT",
@@ -80,7 +81,7 @@ def sole_heights(joints: np.ndarray, flat_ankle: float | np.ndarray = FLAT_ANKLE
     out = []
     for _, _, ankle, toe in LEGS:
         bone = joints[..., toe, :] - joints[..., ankle, :]
-        length = np.linalg.norm(bone, axis=-1)
+        length = vector_norm(bone)
         reach = np.sqrt(np.maximum(length**2 - flat_ankle**2, 1e-6))  # toe joint ahead of the ankle, flat
         turn = np.arctan2(bone[..., 1], np.hypot(bone[..., 0], bone[..., 2])) - np.arctan2(-flat_ankle, reach)
         up = SOLE_RADIUS - flat_ankle  # the sole's axis above the ankle when flat
@@ -143,8 +144,8 @@ def deepest_reach(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray) -> np.nd
     """(N,) the lowest vertical move of the ankle (<= 0, m) that stretches the leg (hip, knee,
     ankle: (N, 3)) no farther than MAX_STRETCH of its length, or than it already is."""
     leg = ankle - hip
-    length = np.linalg.norm(knee - hip, axis=-1) + np.linalg.norm(ankle - knee, axis=-1)
-    reach = np.maximum(MAX_STRETCH * length, np.linalg.norm(leg, axis=-1))
+    length = vector_norm(knee - hip) + vector_norm(ankle - knee)
+    reach = np.maximum(MAX_STRETCH * length, vector_norm(leg))
     # |leg + lift * up| = reach, the root below the ankle.
     down = -leg[:, 1]
     return down - np.sqrt(np.maximum(leg[:, 1] ** 2 + reach**2 - (leg**2).sum(-1), 0.0))

@@ -286,3 +286,17 @@ def test_with_bone_lengths_fixes_stretched_bones_and_keeps_the_feet_height() -> 
     np.testing.assert_allclose(fixed[:, feet, 1].min(1), stretched[:, feet, 1].min(1), atol=1e-5)
     # A body already on the lengths is left as it is.
     np.testing.assert_allclose(M.with_bone_lengths(canonical), canonical, atol=1e-5)
+
+
+def test_vector_norm_and_cross_give_numpys_numbers() -> None:
+    from motion_env.motion.rotations import cross, vector_norm
+
+    rng = np.random.default_rng(0)
+    for dtype in (np.float32, np.float64):
+        a = rng.normal(size=(5, 4, 3)).astype(dtype)
+        b = rng.normal(size=(4, 3)).astype(dtype)  # broadcast, as qrot's quaternions do
+        np.testing.assert_array_equal(vector_norm(a), np.linalg.norm(a, axis=-1))
+        kept = np.linalg.norm(a, axis=-1, keepdims=True)
+        np.testing.assert_array_equal(vector_norm(a, keepdims=True), kept)
+        np.testing.assert_array_equal(cross(a, b), np.cross(a, b))
+        assert cross(a, b).dtype == np.cross(a, b).dtype and vector_norm(a).dtype == dtype
