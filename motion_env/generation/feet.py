@@ -281,9 +281,10 @@ class FootPinner:
                 pin = pins[held, k]
                 fresh = np.isnan(pin[:, 0])
                 pin[fresh] = xz[fresh] + self.offset[rows[held], leg][fresh]  # where it is shown now
-                dist = vector_norm(pin - xz)
+                moved = pin - xz
+                dist = vector_norm(moved)
                 creep = np.where(fresh, 0.0, np.minimum(FOOT_CREEP_RATE * dist, FOOT_CREEP))
-                moved = (1.0 - creep / np.maximum(dist, 1e-12))[:, None] * (pin - xz)
+                moved *= (1.0 - creep / np.maximum(dist, 1e-12))[:, None]
                 norm = vector_norm(moved)
                 far = norm > FOOT_MAX_OFFSET
                 moved[far] *= (FOOT_MAX_OFFSET / norm[far])[:, None]

@@ -46,6 +46,7 @@ from motion_env.generation.ground import (
 )
 from motion_env.generation.height_plan import GRAVITY, STANCE_ACCELERATION, plan_heights
 from motion_env.motion.mass import centre_of_mass
+from motion_env.motion.rotations import vector_norm
 from motion_env.motion.skeleton import FOOT_JOINTS, FPS, NUM_JOINTS
 
 __all__ = [
@@ -286,7 +287,9 @@ class PhysicsFilter:
         22, 3), given `planted` (R, n, 2), the foot joints' `steps` (R, n, 4) and the soles'
         `descent` (R, n, 2) (:meth:`_steps`; :func:`swing_clearance`)."""
         legs = [(joints[..., h, :], joints[..., k, :], joints[..., a, :]) for h, k, a, _ in LEGS]
-        stretch = np.stack([_norm(a - h) / (_norm(k - h) + _norm(a - k)) for h, k, a in legs], axis=-1)
+        stretch = np.stack(
+            [vector_norm(a - h) / (vector_norm(k - h) + vector_norm(a - k)) for h, k, a in legs], axis=-1
+        )
         descent = np.where(stretch > SWING_STRAIGHT, np.inf, descent)
         speed = steps.reshape(steps.shape[:2] + (2, 2)).max(axis=-1) * FPS  # (R, n, 2): ankle or toe
         free = np.zeros_like(speed)
@@ -331,11 +334,6 @@ class PhysicsFilter:
         # Frames in the air at the end: a stretch that fills the new frames continues the past's.
         trailing = np.where(flight.all(axis=1), m, np.argmin(flight[:, ::-1], axis=1))
         self.airborne[rows] = np.where(trailing == m, self.airborne[rows] + trailing, trailing)
-
-
-def _norm(v: np.ndarray) -> np.ndarray:
-    """Lengths of (..., 3) vectors -> (...)."""
-    return np.sqrt((v**2).sum(axis=-1))
 
 
 def _run_length(flags: np.ndarray) -> int:
