@@ -104,16 +104,22 @@ def test_bench_runs_and_writes_json(tmp_path, capsys) -> None:
     stream = results["stream"][0]
     ratio = REFERENCE_CALIBRATION_S * 1000 / stream["calibration_ms"]
     assert stream["quiet"]["frames_per_s"] * ratio == pytest.approx(stream["frames_per_s"])
+    assert results["env_step_ms_learner_4"]["agent"] == "learner_4"
     assert [(r["agent"], r["num_envs"]) for r in results["vector_env"]] == [
-        ("route", 1), ("route", 3), ("learner", 1), ("learner", 3)
+        ("route", 1), ("route", 3), ("learner", 1), ("learner", 3), ("learner_4", 1), ("learner_4", 3)
     ]  # fmt: skip
-    assert all(r["frames_per_s"] > 0 for r in results["vector_env"])
+    assert all(r["steps_per_s"] > 0 for r in results["vector_env"])
+    # at the learning default of 4 frames a step, frames are 4x the steps; at one frame, the same
+    for r in results["vector_env"]:
+        frames = 4 if r["agent"] == "learner_4" else 1
+        assert r["frames_per_s"] == pytest.approx(frames * r["steps_per_s"])
     assert results["untrained"] is True
     assert results["clip_latency_ms"]["runs"] == 2 and results["clip_latency_ms"]["median"] > 0
     assert [s["batch"] for s in results["stream"]] == [1, 3]
     assert all(s["frames_per_s"] > 0 for s in results["stream"])
     printed = capsys.readouterr().out
     assert "clip latency" in printed and "vector env, N=3, new targets" in printed
+    assert "vector env, N=3, new targets, 4 frames a step" in printed and "frames/s" in printed
     assert "quiet equiv." in printed
 
 

@@ -179,11 +179,13 @@ def time_stream(generator: Any, batch: int, frames: int = 100) -> dict[str, floa
 
 
 # The ways an agent drives the env in the bench: following its route (world points, the route
-# target), or learning (a new random normalised target every step, no follow switch); with a
-# look-ahead head in the weights, the learner also with the exact look-ahead (the head's before).
+# target), or learning (a new random normalised target every step, no follow switch), at one frame
+# a step or at the env's default of 4 (what a learner trains with); with a look-ahead head in the
+# weights, the learner also with the exact look-ahead (the head's before).
 AGENTS = {
     "route": {"action_mode": "absolute", "frames_per_step": 1},
     "learner": {"action_mode": "normalized", "follow_action": False, "frames_per_step": 1},
+    "learner_4": {"action_mode": "normalized", "follow_action": False, "frames_per_step": 4},
     "learner_exact": {
         "action_mode": "normalized",
         "follow_action": False,
@@ -194,6 +196,7 @@ AGENTS = {
 AGENT_LABELS = {
     "route": "following the route",
     "learner": "new target each step",
+    "learner_4": "new target each step, 4 frames a step",
     "learner_exact": "new target each step, exact look-ahead",
 }
 
@@ -244,8 +247,9 @@ def time_env(generator: Any, steps: int = 1000, agent: str = "route") -> dict[st
 def vector_throughput(
     generator: Any, num_envs: int, steps: int = 200, warmup: int = 20, seed: int = 0, agent: str = "route"
 ) -> dict:
-    """Env steps (= frames) per second of the batched vector env with `num_envs` characters, one
-    frame per step; `agent` is "route" or "learner" (see :data:`AGENTS`)."""
+    """Env steps per second of the batched vector env with `num_envs` characters (``steps_per_s``;
+    ``frames_per_s`` counts the frames, the same at one frame a step); `agent` is a key of
+    :data:`AGENTS`."""
     import gymnasium as gym
 
     import motion_env  # noqa: F401  (registers the environments)
@@ -270,14 +274,16 @@ def vector_throughput(
     w1, c1 = _clock()
     envs.close()
     elapsed, cpu = w1 - w0, max(c1 - c0, 1e-9)
-    return {
-        "num_envs": num_envs,
-        "agent": agent,
-        "steps": steps,
-        "ms_per_step": 1000.0 * elapsed / steps,
-        "frames_per_s": num_envs * steps / elapsed,
-        "cpu": {"ms_per_step": 1000.0 * cpu / steps, "frames_per_s": num_envs * steps / cpu},
-    }
+    frames = AGENTS[agent]["frames_per_step"]
+
+    def rates(seconds: float) -> dict[str, float]:
+        return {
+            "ms_per_step": 1000.0 * seconds / steps,
+            "steps_per_s": num_envs * steps / seconds,
+            "frames_per_s": num_envs * steps * frames / seconds,
+        }
+
+    return {"num_envs": num_envs, "agent": agent, "steps": steps, **rates(elapsed), "cpu": rates(cpu)}
 
 
 def hardware() -> dict[str, Any]:
@@ -393,15 +399,26 @@ def format_results(results: dict[str, Any]) -> str:
             rate = env.get("steps_per_s", 0.0)
             lines.append(_row(f"env steps/s, {label}", rate, None, "steps/s", 0, _quiet(env, "steps_per_s")))
     for row in results.get("vector_env", []):
-        n, fps, agent = row["num_envs"], row["frames_per_s"], row.get("agent", "route")
+        n, agent = row["num_envs"], row.get("agent", "route")
         label = (
             AGENT_LABELS.get(agent, agent)
             .replace("the route", "routes")
             .replace("target each step", "targets")
         )
-        lines.append(
-            _row(f"vector env, N={n}, {label}", fps, None, "steps/s", 0, _quiet(row, "frames_per_s"))
-        )
+        # Results of before the steps/frames split have frames only (one frame a step).
+        key = "steps_per_s" if "steps_per_s" in row else "frames_per_s"
+        lines.append(_row(f"vector env, N={n}, {label}", row[key], None, "steps/s", 0, _quiet(row, key)))
+        if row["frames_per_s"] != row[key]:
+            lines.append(
+                _row(
+                    f"vector env, N={n}, {label}",
+                    row["frames_per_s"],
+                    None,
+                    "frames/s",
+                    0,
+                    _quiet(row, "frames_per_s"),
+                )
+            )
     lines.append(
         f"streaming: the controller runs {results['stream_lookahead_frames']} frames ahead (paid on the "
         f"first step); a new caption/route acts within {results['control_delay_frames']} frames"

@@ -247,14 +247,19 @@ class VQVAE(nn.Module):
         self._check_features(x)
         quant, codes, q = self.quantizer(self.encode_latent(x))
         recon = self.decode_latent(quant)
-        c = self.config
+        losses = self.reconstruction_losses(recon, x)
+        losses["loss"] = losses["loss"] + self.config.commit_weight * q["commit"]
+        return recon, codes, {**losses, **q}
+
+    def reconstruction_losses(self, recon: torch.Tensor, x: torch.Tensor) -> dict[str, torch.Tensor]:
+        """The decoder's losses of a reconstruction `recon` of `x` (both (B, T, 263), normalised):
+        "recon", "velocity" and their weighted sum "loss" (without the commitment term)."""
         rec = F.smooth_l1_loss(recon, x)
         # Frame-to-frame change of the root-relative joint positions: penalises jitter that a
         # per-frame loss lets through.
         ric = slice(RIC.start, RIC.start + (NUM_JOINTS - 1) * 3)
         vel = F.smooth_l1_loss(recon[:, 1:, ric] - recon[:, :-1, ric], x[:, 1:, ric] - x[:, :-1, ric])
-        loss = rec + c.velocity_weight * vel + c.commit_weight * q["commit"]
-        return recon, codes, {"loss": loss, "recon": rec, "velocity": vel, **q}
+        return {"loss": rec + self.config.velocity_weight * vel, "recon": rec, "velocity": vel}
 
     @torch.no_grad()
     def encode(self, x: torch.Tensor) -> torch.Tensor:

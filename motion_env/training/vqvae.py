@@ -12,6 +12,9 @@ valid, while extra losses on the differences of the decoded joint positions (``v
 ``acc_weight``, ``jerk_weight``) teach the decoder to stop rippling at the token rate;
 ``ripple_weight`` aims at that ripple alone (:func:`token_ripple`), and ``read_weight`` puts the
 decoder's capacity on the channels the generator builds its body from (:data:`READ_CHANNELS`).
+``context`` decodes each window after the frames before it (:func:`context_windows`): the
+generator decodes whole clips, so its decoder meets an empty history only at a clip's first frame,
+while a window cut from the middle of a take starts one at a frame where the take is in motion.
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ from motion_env.models.checkpoint import config_from_dict, read_checkpoint
 from motion_env.models.normalizer import Normalizer
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
 from motion_env.motion.skeleton import FOOT_CONTACT, NUM_JOINTS, RIC, ROOT_ROT_VEL
-from motion_env.motion.validation import NonNegativeFloat, PositiveFloat, PositiveInt
+from motion_env.motion.validation import NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt
 from motion_env.training import loop
 from motion_env.training.config import TrainConfig
 
@@ -52,6 +55,7 @@ class VQVAETrainConfig(TrainConfig):
     ripple_weight: NonNegativeFloat = 0.0  # L1 loss on the token-periodic part of the acceleration error
     smooth_joints: str = "all"  # joints those losses apply to: "all", or "upper" (spine, head, arms)
     read_weight: PositiveFloat = 1.0  # reconstruction weight of the channels the body is read from
+    context: NonNegativeInt = 0  # frames before each window decoded as its history, not scored (decoder only)
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -62,6 +66,13 @@ class VQVAETrainConfig(TrainConfig):
             )
         if self.init is not None and not (isinstance(self.init, str) and self.init.strip()):
             raise ValueError(f"VQVAETrainConfig.init must be a checkpoint path or None, got {self.init!r}")
+        if self.context % 4 or (self.context and not self.freeze_encoder):
+            # A multiple of any rate (2 or 4) keeps the scored window on a token boundary; the
+            # encoder's commitment loss would also score the history and the padding after it.
+            raise ValueError(
+                f"VQVAETrainConfig.context must be a multiple of 4 frames and needs freeze_encoder, "
+                f"got context={self.context!r}, freeze_encoder={self.freeze_encoder!r}"
+            )
         if self.freeze_encoder and self.init is None and not self.resume:
             # A frozen random encoder and an empty codebook would give every frame the same token.
             raise ValueError("VQVAETrainConfig.freeze_encoder needs a trained VQ-VAE: set init (or resume)")
@@ -81,6 +92,38 @@ SMOOTH_JOINTS = {
 # velocities (192 of the 263 channels) are only targets of training; weighting what is read
 # (``read_weight`` > 1) gives the decoder's capacity to the body it actually puts out.
 READ_CHANNELS = np.r_[ROOT_ROT_VEL.start : RIC.stop, FOOT_CONTACT]
+
+
+def context_windows(
+    feats: list[torch.Tensor], clips: np.ndarray, starts: np.ndarray, window: int, context: int, rate: int
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Windows of `window` frames, each with up to `context` frames of its take before it.
+
+    Window n is frames ``starts[n] ...`` of ``feats[clips[n]]``. Its crop begins `context` frames
+    earlier, or at the take's first frame when the window starts sooner (then the window moves
+    back to a multiple of `rate` frames into the take, so that it starts on a token boundary, as
+    it does after a full history); crops are laid from index 0 (the decoder's empty history is
+    the crop's start) and padded with zeros after their end (a causal decoder never reads them).
+
+    Returns:
+        ((B, context + window, C) crops, (B,) long index of each window's first frame in its crop).
+    """
+    crops, first = [], []
+    for i, o in zip(clips, starts, strict=True):
+        o = int(o)
+        begin = o - context if o >= context else 0
+        if begin == 0:
+            o -= o % rate
+        crop = feats[int(i)][begin : o + window]
+        crops.append(F.pad(crop, (0, 0, 0, context + window - crop.shape[0])))
+        first.append(o - begin)
+    return torch.stack(crops), torch.as_tensor(first, dtype=torch.long)
+
+
+def scored(x: torch.Tensor, first: torch.Tensor, window: int) -> torch.Tensor:
+    """(B, T, C) -> (B, window, C): each row's `window` frames from its index ``first[b]``."""
+    frames = first.to(x.device)[:, None] + torch.arange(window, device=x.device)
+    return x[torch.arange(x.shape[0], device=x.device)[:, None], frames]
 
 
 def read_channel_loss(recon: torch.Tensor, target: torch.Tensor, weight: float) -> torch.Tensor:
@@ -301,8 +344,16 @@ def train_vqvae(
         _train_mode(model, config.freeze_encoder)
         idx = rng.choice(len(feats), size=config.batch_size, p=weights)
         offs = (rng.random(config.batch_size) * lengths[idx]).astype(int)
-        x = torch.stack([feats[i][o : o + window] for i, o in zip(idx, offs, strict=True)]).to(device)
-        recon, _, losses = model(x)
+        if config.context:
+            crops, first = context_windows(feats, idx, offs, window, config.context, model.rate)
+            full, _, q = model(crops.to(device))
+            recon, x = scored(full, first, window), scored(crops.to(device), first, window)
+            # No commitment term (the encoder is frozen); "commit" and "perplexity" are logged
+            # over the whole crops.
+            losses = {**q, **model.reconstruction_losses(recon, x)}
+        else:
+            x = torch.stack([feats[i][o : o + window] for i, o in zip(idx, offs, strict=True)]).to(device)
+            recon, _, losses = model(x)
         extra = derivative_losses(recon, x, config, model.rate)
         read = read_channel_loss(recon, x, config.read_weight)
         losses["loss"] = losses["loss"] + extra.pop("smooth") + read

@@ -16,8 +16,10 @@ from motion_env.models.vqvae import VQVAE, VQVAEConfig
 from motion_env.training.vqvae import (
     READ_CHANNELS,
     VQVAETrainConfig,
+    context_windows,
     derivative_losses,
     read_channel_loss,
+    scored,
     token_ripple,
     train_vqvae,
 )
@@ -178,3 +180,36 @@ def test_freezing_needs_a_trained_model(tiny_dataset: Path, tmp_path: Path) -> N
     config = VQVAETrainConfig(steps=1, init=str(init), **FAST)
     with pytest.raises(ValueError, match="not the given"):
         train_vqvae(tiny_dataset, tmp_path / "vq.pt", config, other)
+
+
+def test_context_windows_put_each_window_after_its_history() -> None:
+    # Frame f of take i holds 100 * i + f in every channel, so a crop says where it comes from.
+    feats = [
+        torch.arange(n, dtype=torch.float32)[:, None].repeat(1, 3) + 100 * i for i, n in enumerate((40, 90))
+    ]
+    crops, first = context_windows(feats, np.array([1, 1, 0]), np.array([50, 13, 2]), 8, 24, 4)
+    assert crops.shape == (3, 32, 3) and first.tolist() == [24, 12, 0]
+    # Deep in a take: 24 frames of history, then the window, nothing padded.
+    assert crops[0, :, 0].tolist() == [126.0 + f for f in range(32)]
+    # Nearer its start than the context: the crop begins at the take's first frame (the decoder's
+    # empty history is the take's start), the window moves back onto a token boundary (13 -> 12),
+    # and zeros pad the crop after its end.
+    assert crops[1, :20, 0].tolist() == [100.0 + f for f in range(20)] and not crops[1, 20:].any()
+    assert scored(crops, first, 8)[1, :, 0].tolist() == [112.0 + f for f in range(8)]
+    assert scored(crops, first, 8)[2, :, 0].tolist() == [float(f) for f in range(8)]
+
+
+def test_context_is_checked_and_trains_the_decoder(tiny_dataset: Path, tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="context must be a multiple of 4"):
+        VQVAETrainConfig(context=6, freeze_encoder=True, init="x.pt")
+    with pytest.raises(ValueError, match="needs freeze_encoder"):
+        VQVAETrainConfig(context=8)
+    init = tmp_path / "init.pt"
+    _packaged_init(init, *load_stats(tiny_dataset))
+    config = VQVAETrainConfig(steps=2, init=str(init), freeze_encoder=True, context=16, lr=1e-2, **FAST)
+    metrics = train_vqvae(tiny_dataset, tmp_path / "ctx.pt", config)
+    assert np.isfinite(metrics["loss"]) and metrics["recon"] > 0
+    before = load_checkpoint(init, "vqvae", VQVAEConfig, VQVAE)[0].state_dict()
+    after = load_checkpoint(tmp_path / "ctx.pt", "vqvae", VQVAEConfig, VQVAE)[0].state_dict()
+    assert all(torch.equal(before[k], after[k]) for k in before if k.startswith("encoder."))
+    assert any(not torch.equal(before[k], after[k]) for k in before if k.startswith("decoder."))
