@@ -28,11 +28,16 @@ fine-tuned). Prints a table per checkpoint and writes everything to ``--json``.
 With ``--stages ACTIONS`` it finds instead where the pops of generated clips come from: the
 naturalness takes of those actions (:mod:`motion_env.evaluation.naturalness`, same choice, same
 protocol) are made again by the shipped generator, and each clip is measured after every stage of
-its placement: ``decoded`` (the decoded body relative to its root), ``composed`` (on the path and
-on the skeleton's bones), ``feet`` (the foot pinning) and ``physics``. Per clip and stage: the
-largest joint acceleration, its joint and frame, and whether it pops (over 1.5 x the real takes'
-p99.9, as ``eval natural``); the foot skating; and, per action, how far planted feet slide
-(cm per frame, frames where the decoder marks both contacts of a foot).
+its placement: ``decoded`` (the decoded body relative to its root), ``pelvis_out`` and ``fitted``
+(that body put on the skeleton's bone lengths by a rebuild from the pelvis outward along the
+decoded bones, :func:`~motion_env.motion.kinematics.with_bone_lengths`, as the generator did
+before, or by :func:`~motion_env.motion.kinematics.fit_bone_lengths`, as it does now),
+``composed`` (on the path, on the bones, arms re-solved), ``feet`` (the foot pinning) and
+``physics``. Per clip and stage: the largest joint acceleration, its joint and frame, and whether
+it pops (over 1.5 x the real takes' p99.9, as ``eval natural``); the foot skating; per action,
+each stage's acceleration p99 over the real takes' (the final one also without each clip's first
+``--skip-frames`` frames, where clips start), and how far planted feet slide (cm per frame,
+frames where the decoder marks both contacts of a foot).
 
     python scripts/analyze_smoothness.py --stages walk,walk-left,walk-right --split test
 """
@@ -74,6 +79,7 @@ class Args:
     json: str = "runs/smoothness.json"  # where the numbers go
     stages: str = ""  # comma-separated actions: attribute generated clips' pops to stages instead
     per_action: int = 7  # --stages: clips per action (the naturalness evaluation's choice)
+    skip_frames: int = 8  # --stages: the final acceleration ratio also without each clip's first frames
 
 
 # --- measures on one clip's world joints (T, 22, 3) ----------------------------------------
@@ -238,7 +244,7 @@ def print_table(name: str, real: dict, recon: dict, ratio: dict) -> None:
 
 # --- where the pops of generated clips come from (--stages) --------------------------------
 
-STAGE_NAMES = ("decoded", "composed", "feet", "physics")
+STAGE_NAMES = ("decoded", "pelvis_out", "fitted", "composed", "feet", "physics")
 
 
 def placed_stages(pipe: Any, features: np.ndarray, path: np.ndarray) -> dict[str, np.ndarray]:
@@ -246,15 +252,20 @@ def placed_stages(pipe: Any, features: np.ndarray, path: np.ndarray) -> dict[str
     on a root `path` (>= n, 3): decoded (root-relative), composed, feet, physics."""
     from motion_env.generation.feet import FootPinner
     from motion_env.generation.physics import apply_physics
-    from motion_env.generation.recompose import local_pose_from_features
+    from motion_env.generation.recompose import local_pose_from_features, recompose
+    from motion_env.motion.kinematics import fit_bone_lengths, with_bone_lengths
     from motion_env.motion.skeleton import FOOT_CONTACT
 
     n = len(features)
+    decoded = local_pose_from_features(features)
+    still = recompose(decoded, np.zeros((n, 3), np.float32), face_travel=False)
     composed, _ = pipe.compose(features, path, n)
     feet = FootPinner(1).apply(0, composed, features[:, FOOT_CONTACT])
     physics = apply_physics(feet, features[:, FOOT_CONTACT])
     return {
-        "decoded": local_pose_from_features(features),
+        "decoded": decoded,
+        "pelvis_out": with_bone_lengths(still),
+        "fitted": fit_bone_lengths(still),
         "composed": composed,
         "feet": feet,
         "physics": physics,
@@ -306,12 +317,15 @@ def stage_pops(args: Args) -> dict[str, Any]:
     }
     pipe = MotionGenerator.from_pretrained().pipeline
     out: dict[str, Any] = {}
+    pooled: dict[str, list[np.ndarray]] = {name: [] for name in (*STAGE_NAMES, "real")}
     for action in actions:
         if action not in takes:
             raise SystemExit(f"no action {action!r} with 3 takes in split {args.split!r}: {sorted(takes)}")
         real_accel = np.concatenate([joint_acceleration(t.joints).ravel() for t in takes[action]])
         pop = POP_FACTOR * float(np.percentile(real_accel, 99.9))
-        clips, slide = [], {name: [] for name in STAGE_NAMES[1:]}
+        clips, slide = [], {name: [] for name in STAGE_NAMES[3:]}
+        accels: dict[str, list[np.ndarray]] = {name: [] for name in STAGE_NAMES}
+        late: list[np.ndarray] = []  # the final stage without the clips' first frames
         for take in chosen[action]:
             t_len = len(take.joints)
             path = extended_path(root_path_from_joints(take.joints))
@@ -329,35 +343,59 @@ def stage_pops(args: Args) -> dict[str, Any]:
             row: dict[str, Any] = {"take": take.name}
             for name, joints in stages.items():
                 acc = joint_acceleration(joints[:t_len])
+                accels[name].append(acc.ravel())
                 frame, joint = np.unravel_index(int(acc.argmax()), acc.shape)
                 row[name] = {
                     "max_accel": float(acc.max()),
                     "joint": int(joint),
                     "frame": int(frame) + 1,
                     "pops": bool(acc.max() > pop),
-                    "skating": foot_skating_ratio(joints[:t_len]) if name != "decoded" else None,
+                    "skating": foot_skating_ratio(joints[:t_len]) if name in STAGE_NAMES[3:] else None,
                 }
                 if name in slide:
                     slide[name] += planted_slide(joints[:t_len], contacts)
+            late.append(joint_acceleration(stages["physics"][:t_len])[args.skip_frames :].ravel())
             clips.append(row)
+        real = [joint_acceleration(t.joints).ravel() for t in chosen[action]]
+        real_p99 = float(np.percentile(np.concatenate(real), 99))
+        for name in STAGE_NAMES:
+            pooled[name] += accels[name]
+        pooled["real"] += real
+        real_late = np.concatenate(
+            [joint_acceleration(t.joints)[args.skip_frames :].ravel() for t in chosen[action]]
+        )
+        accel_ratio = {n: float(np.percentile(np.concatenate(v), 99)) / real_p99 for n, v in accels.items()}
+        accel_ratio[f"physics_after_{args.skip_frames}"] = float(
+            np.percentile(np.concatenate(late), 99) / np.percentile(real_late, 99)
+        )
         real_skating = float(np.mean([foot_skating_ratio(t.joints) for t in chosen[action]]))
         out[action] = {
             "pop_threshold": pop,
             "clips": clips,
             "real_skating": real_skating,
             "planted_slide_cm": {k: 100 * float(np.mean(v)) if v else None for k, v in slide.items()},
+            "accel_p99_ratio": accel_ratio,
         }
         print(f"\n{action} (pop over {pop:.1f} m/s^2; real skating {real_skating:.3f})")
         print(f"{'take':<40}" + "".join(f"{n:>26}" for n in STAGE_NAMES))
         for row in clips:
             print(f"{row['take'][:39]:<40}" + "".join(_stage_cell(row[n]) for n in STAGE_NAMES))
+        print("acceleration p99 / real " + ", ".join(f"{n} {v:.2f}" for n, v in accel_ratio.items()))
         pops = {n: sum(r[n]["pops"] for r in clips) for n in STAGE_NAMES}
         print("pops " + ", ".join(f"{n} {v}/{len(clips)}" for n, v in pops.items()))
         if real_skating > 0:  # takes in place (raised hands, waves) have no skating to compare
-            skate = {n: np.mean([r[n]["skating"] for r in clips]) / real_skating for n in STAGE_NAMES[1:]}
+            skate = {n: np.mean([r[n]["skating"] for r in clips]) / real_skating for n in STAGE_NAMES[3:]}
             print("skating / real " + ", ".join(f"{n} {v:.2f}" for n, v in skate.items()))
         slides = out[action]["planted_slide_cm"].items()
         print("planted feet slide (cm/frame) " + ", ".join(f"{n} {v:.2f}" for n, v in slides))
+    if len(actions) > 1:
+        real_p99 = float(np.percentile(np.concatenate(pooled["real"]), 99))
+        ratio = {n: float(np.percentile(np.concatenate(pooled[n]), 99)) / real_p99 for n in STAGE_NAMES}
+        out["all"] = {"accel_p99_ratio": ratio}
+        print(
+            "\nall these actions: acceleration p99 / real "
+            + ", ".join(f"{n} {v:.2f}" for n, v in ratio.items())
+        )
     return out
 
 

@@ -21,7 +21,7 @@ from scipy.ndimage import gaussian_filter1d
 
 from motion_env.generation.feet import two_bone_ik
 from motion_env.motion.features import features_to_joints
-from motion_env.motion.kinematics import rotate_y, with_bone_lengths
+from motion_env.motion.kinematics import fit_bone_lengths, rotate_y
 from motion_env.motion.skeleton import FPS
 from motion_env.motion.trajectory import (
     root_path_from_joints,
@@ -141,12 +141,16 @@ ARMS: tuple[tuple[int, int, int], ...] = ((16, 18, 20), (17, 19, 21))
 ARM_SCALE = 1.05
 # The bias (m) towards bending back and out that an arm's elbow gets (see on_bone_lengths).
 ARM_BEND_HINT = 0.01
+# How much of the bend an arm needs but its decoded elbow does not show the bias fills in (see
+# on_bone_lengths: all of it where the decoded arm shows none, little where it shows most).
+ARM_BEND_FILL = 1.0
 
 
 def on_bone_lengths(joints: np.ndarray) -> np.ndarray:
     """Decoded joints rebuilt on the skeleton's bone lengths, the wrists where the decoder put them.
 
-    :func:`~motion_env.motion.kinematics.with_bone_lengths` keeps every bone's direction; where the
+    :func:`~motion_env.motion.kinematics.fit_bone_lengths` moves each joint about as little as the
+    lengths need (a rebuild from the pelvis outward made the joints far from it jitter). Where the
     decoder shrinks a forearm or upper arm to a third of its length for a few frames (as a hand is
     raised fast), the direction of that short bone swings, and at full length it swung the wrist
     through 10-20 cm in a frame: the wrists' pops of generated clips (100 m/s^2 where the decoded
@@ -158,7 +162,7 @@ def on_bone_lengths(joints: np.ndarray) -> np.ndarray:
     joints: (..., 22, 3) -> float32 of the same shape.
     """
     decoded = np.asarray(joints, dtype=np.float64)
-    out = with_bone_lengths(joints).astype(np.float64)
+    out = fit_bone_lengths(joints).astype(np.float64)
     shape = out.shape
     flat, dec = out.reshape(-1, shape[-2], 3), decoded.reshape(-1, shape[-2], 3)
     for shoulder, elbow, wrist in ARMS:
@@ -177,8 +181,24 @@ def on_bone_lengths(joints: np.ndarray) -> np.ndarray:
         back = np.cross(outward, [0.0, 1.0, 0.0]) * (-1.0 if shoulder == ARMS[0][0] else 1.0)
         hint = back / np.maximum(np.linalg.norm(back, axis=-1, keepdims=True), 1e-9)
         hint += 0.5 * outward / np.maximum(np.linalg.norm(outward, axis=-1, keepdims=True), 1e-9)
+        # A decoded arm much shorter than the skeleton's but held straight (both bones at half
+        # length as a hand is thrown up) must bend far to keep the wrist where it was decoded:
+        # its own bend is noise, which flipped the elbow from one side to the other between
+        # frames (250 m/s^2). The bias grows with the share of the needed bend the arm does not
+        # show (squared: an arm bent most of the way keeps its own plane), so such an arm bends
+        # back and out.
+        upper = flat[:, elbow] - flat[:, shoulder]
+        reach = flat[:, wrist] - flat[:, shoulder]
+        along = (upper * reach).sum(-1) / np.maximum((reach * reach).sum(-1), 1e-12)
+        shown = np.linalg.norm(upper - along[:, None] * reach, axis=-1)
+        l1, l2 = np.linalg.norm(upper, axis=-1), np.linalg.norm(flat[:, wrist] - flat[:, elbow], axis=-1)
+        d = np.clip(np.linalg.norm(goal - flat[:, shoulder], axis=-1), np.abs(l1 - l2) + 1e-4, l1 + l2 - 1e-4)
+        a = (l1**2 - l2**2 + d**2) / (2 * d)
+        needed = np.sqrt(np.maximum(l1**2 - a**2, 0.0))
+        missing = np.clip(1.0 - shown / np.maximum(needed, 1e-9), 0.0, 1.0)
+        weight = ARM_BEND_HINT + ARM_BEND_FILL * needed * missing**2
         flat[:, elbow], flat[:, wrist] = two_bone_ik(
-            flat[:, shoulder], flat[:, elbow], flat[:, wrist], goal, hint, hint_weight=ARM_BEND_HINT
+            flat[:, shoulder], flat[:, elbow], flat[:, wrist], goal, hint, hint_weight=weight[:, None]
         )
     return flat.reshape(shape).astype(np.float32)
 

@@ -5,6 +5,7 @@
   :func:`~motion_env.generation.recompose.local_pose_from_features`, with the per-frame yaw between
   the features' root frame and the hips-and-shoulders heading frame held fixed (:func:`frame_yaw`);
 - :func:`with_bone_lengths_torch`: :func:`motion_env.motion.kinematics.with_bone_lengths`;
+- :func:`fit_bone_lengths_torch`: :func:`motion_env.motion.kinematics.fit_bone_lengths`;
 - :func:`place_on_path_torch`: :func:`~motion_env.generation.recompose.recompose` onto a fixed path.
 """
 
@@ -14,6 +15,13 @@ import numpy as np
 import torch
 
 from motion_env.motion.features import features_to_joints, recover_root
+from motion_env.motion.kinematics import (
+    BONE_CHILDREN,
+    BONE_DEGREE,
+    BONE_INCIDENCE,
+    BONE_PARENTS,
+    FIT_ITERATIONS,
+)
 from motion_env.motion.skeleton import (
     BONE_LENGTHS,
     FOOT_JOINTS,
@@ -26,6 +34,7 @@ from motion_env.motion.skeleton import (
 from motion_env.motion.trajectory import root_path_from_joints
 
 __all__ = [
+    "fit_bone_lengths_torch",
     "frame_yaw",
     "local_pose_torch",
     "place_on_path_torch",
@@ -78,12 +87,29 @@ def with_bone_lengths_torch(joints: torch.Tensor) -> torch.Tensor:
     return rebuilt + torch.stack([torch.zeros_like(lift), lift, torch.zeros_like(lift)], dim=-1)[:, None]
 
 
+def fit_bone_lengths_torch(joints: torch.Tensor, iterations: int = FIT_ITERATIONS) -> torch.Tensor:
+    """:func:`motion_env.motion.kinematics.fit_bone_lengths` with the canonical lengths: (T, 22, 3)."""
+    target = joints.new_tensor(BONE_LENGTHS[BONE_CHILDREN])[:, None]
+    incidence, degree = joints.new_tensor(BONE_INCIDENCE), joints.new_tensor(BONE_DEGREE)[:, None]
+    x = joints
+    for _ in range(int(iterations)):
+        bone = x[:, BONE_CHILDREN] - x[:, BONE_PARENTS]
+        norm = bone.norm(dim=-1, keepdim=True)
+        excess = (1.0 - target / norm.clamp_min(1e-9)) * bone
+        x = x - 0.5 * torch.einsum("bj,tbk->tjk", incidence, excess) / degree
+    rebuilt = with_bone_lengths_torch(x - x[:, :1] + joints[:, :1])  # the pelvis where it was
+    feet = list(FOOT_JOINTS)
+    lift = joints[:, feet, 1].min(dim=1).values - rebuilt[:, feet, 1].min(dim=1).values
+    return rebuilt + torch.stack([torch.zeros_like(lift), lift, torch.zeros_like(lift)], dim=-1)[:, None]
+
+
 def place_on_path_torch(local: torch.Tensor, path: torch.Tensor) -> torch.Tensor:
-    """:func:`~motion_env.generation.recompose.recompose` (``face_travel=False``) with bone lengths:
+    """:func:`~motion_env.generation.recompose.recompose` (``face_travel=False``) on bone lengths
+    (:func:`fit_bone_lengths_torch`):
     (T, 22, 3) local pose, (T, 3) path (x, z, heading; already turned to the travel) -> world joints."""
     local = (
         local - torch.stack([local[:, 0, 0], torch.zeros_like(local[:, 0, 0]), local[:, 0, 2]], -1)[:, None]
     )
     world = rotate_y_torch(local, path[:, None, 2])
     shift = torch.stack([path[:, 0], torch.zeros_like(path[:, 0]), path[:, 1]], dim=-1)
-    return with_bone_lengths_torch(world + shift[:, None])
+    return fit_bone_lengths_torch(world + shift[:, None])

@@ -44,6 +44,7 @@ __all__ = [
     "bone_offsets",
     "canonicalize",
     "chain_local_rotations",
+    "fit_bone_lengths",
     "floor_height",
     "forward_kinematics",
     "from_heading_frame",
@@ -274,6 +275,59 @@ def with_bone_lengths(joints: np.ndarray, lengths: np.ndarray = BONE_LENGTHS) ->
     """
     joints = check_joints(joints, batched=True)
     out = _rebuild(joints, joints[..., 0, :], _check_lengths(lengths))
+    feet = list(FOOT_JOINTS)
+    out[..., 1] += (joints[..., feet, 1].min(axis=-1) - out[..., feet, 1].min(axis=-1))[..., None]
+    return out.astype(np.float32)
+
+
+# Each bone as (child, parent) and the joint-by-bone incidence of the skeleton's tree: +1 at a
+# bone's child, -1 at its parent (for :func:`fit_bone_lengths` and its torch twin).
+BONE_CHILDREN = np.arange(1, NUM_JOINTS)
+BONE_PARENTS = np.array(PARENTS[1:])
+BONE_INCIDENCE = np.zeros((NUM_JOINTS - 1, NUM_JOINTS))
+BONE_INCIDENCE[np.arange(NUM_JOINTS - 1), BONE_CHILDREN] = 1.0
+BONE_INCIDENCE[np.arange(NUM_JOINTS - 1), BONE_PARENTS] = -1.0
+BONE_DEGREE = np.abs(BONE_INCIDENCE).sum(axis=0)  # bones meeting at each joint
+FIT_ITERATIONS = 6
+"""Rounds of :func:`fit_bone_lengths`: bones within about 7 mm of their lengths before its exact
+rebuild, which then moves joints by 3-4 mm on average (1 cm of noise on every joint)."""
+
+
+def fit_bone_lengths(
+    joints: np.ndarray, lengths: np.ndarray = BONE_LENGTHS, iterations: int = FIT_ITERATIONS
+) -> np.ndarray:
+    """Every frame on `lengths`, each joint moved about as little as the lengths need.
+
+    :func:`with_bone_lengths` rebuilds a pose from the pelvis outward along the bones' directions,
+    so a wrist or a toe sums the errors of the six or seven bones before it: a decoder's bones,
+    which stretch and shrink a little from frame to frame, become joints that jitter more the
+    further they are from the pelvis (the wrists', knees' and toes' accelerations of generated
+    clips rose by 10-25 %). Here each round shortens or stretches every bone towards its length
+    by moving its two ends towards or away from each other, half each, shared out over the bones
+    that meet at a joint (a Jacobi position projection); after `iterations` rounds the pose is
+    rebuilt with :func:`with_bone_lengths`, whose lengths are exact and whose moves are now small,
+    from the pelvis's place in `joints` (a pelvis on a root path stays on it). Per frame, so
+    streaming-safe; the lowest foot joint keeps the height it had, as there.
+
+    joints: (T, 22, 3) (or (B, T, 22, 3)); lengths: (22,). Returns float32 of the same shape.
+    """
+    joints = check_joints(joints, batched=True)
+    lengths = _check_lengths(lengths)
+    if int(iterations) < 0:
+        raise ValueError(f"iterations must be >= 0, got {iterations}")
+    # Joint-major (22, frames * 3), float32: a round is a few whole-array operations and one
+    # matrix product (a stream step fits 64 characters' new frames in about 1 ms).
+    x = np.ascontiguousarray(np.moveaxis(joints.astype(np.float32), -2, 0)).reshape(NUM_JOINTS, -1)
+    frames = x.shape[1] // 3
+    target = lengths[BONE_CHILDREN, None].astype(np.float32)
+    share = (0.5 * BONE_INCIDENCE.T / BONE_DEGREE[:, None]).astype(np.float32)  # a bone's excess to its ends
+    for _ in range(int(iterations)):
+        bone = (x[BONE_CHILDREN] - x[BONE_PARENTS]).reshape(NUM_JOINTS - 1, frames, 3)
+        norm = np.sqrt(np.einsum("ijk,ijk->ij", bone, bone))
+        excess = bone * (1.0 - target / np.maximum(norm, 1e-9))[..., None]  # what each bone is too long by
+        x = x - share @ excess.reshape(NUM_JOINTS - 1, -1)
+    x = np.moveaxis(x.reshape(NUM_JOINTS, *joints.shape[:-2], 3), 0, -2).astype(np.float64)
+    out = _rebuild(x, joints[..., 0, :], lengths)  # the pelvis where it was (on the root path)
     feet = list(FOOT_JOINTS)
     out[..., 1] += (joints[..., feet, 1].min(axis=-1) - out[..., feet, 1].min(axis=-1))[..., None]
     return out.astype(np.float32)

@@ -50,10 +50,10 @@ def test_table_prints_both_equivalents() -> None:
 def test_exact_look_ahead_is_timed_beside_the_head(random_generator) -> None:
     """With a look-ahead head the learner is also timed with the exact look-ahead (before/after in
     one run), and the table prints both."""
-    assert bench.bench_agents(random_generator) == ["route", "learner"]
+    assert bench.bench_agents(random_generator) == ["route", "learner", "learner_4"]
     random_generator.pipeline.lookahead = object()  # any head
     try:
-        assert bench.bench_agents(random_generator) == ["route", "learner", "learner_exact"]
+        assert bench.bench_agents(random_generator) == ["route", "learner", "learner_4", "learner_exact"]
     finally:
         random_generator.pipeline.lookahead = None
     env = {"median": 1.0, "p99": 9.0, "steps_per_s": 100.0, "calibration_ms": 32.0}

@@ -213,6 +213,26 @@ def test_a_straight_but_short_decoded_arm_bends_its_elbow_one_way() -> None:
     assert np.linalg.norm(np.diff(rebuilt[:, elbow], axis=0), axis=-1).max() < 0.1
 
 
+def test_an_arm_decoded_straight_at_half_length_bends_one_way() -> None:
+    """As a hand is thrown up the decoder can shrink both arm bones to half length and hold them
+    straight; the wrist is kept near its decoded place, so the elbow bends far (about 20 cm), and
+    the way it bends must not follow the decoded elbow's millimetres of noise (it flipped through
+    250 m/s^2 in a generated wave)."""
+    pose = _pose()
+    n = 30
+    decoded = np.repeat(pose[None], n, axis=0)
+    shoulder, elbow, wrist = ARMS[0]
+    reach = 0.5 * (BONE_LENGTHS[elbow] + BONE_LENGTHS[wrist])
+    down = np.array([0.0, -1.0, 0.0])
+    noise = np.random.default_rng(1).normal(0.0, 0.003, (n, 3))
+    decoded[:, wrist] = pose[shoulder] + reach * down
+    decoded[:, elbow] = pose[shoulder] + 0.5 * reach * down + noise
+    rebuilt = on_bone_lengths(decoded)
+    side = rebuilt[:, elbow] - rebuilt[:, shoulder]
+    assert np.all(side[:, 2] < -0.05)  # back, every frame
+    assert np.linalg.norm(np.diff(rebuilt[:, elbow], axis=0), axis=-1).max() < 0.05
+
+
 def _shin_foot(out: np.ndarray, leg: int) -> np.ndarray:
     _, knee, ankle, toe = LEGS[leg]
     u, v = out[:, knee] - out[:, ankle], out[:, toe] - out[:, ankle]

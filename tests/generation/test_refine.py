@@ -22,7 +22,7 @@ from motion_env.generation.feet import two_bone_ik
 from motion_env.generation.recompose import local_pose_from_features, recompose
 from motion_env.generation.torch_body import frame_yaw, local_pose_torch, place_on_path_torch
 from motion_env.motion.features import joints_to_features
-from motion_env.motion.kinematics import bone_lengths, with_bone_lengths
+from motion_env.motion.kinematics import bone_lengths, fit_bone_lengths, with_bone_lengths
 from motion_env.motion.skeleton import BONE_LENGTHS, JOINT_INDEX
 from motion_env.objectives import HeightLimit, KeepOut
 
@@ -49,7 +49,7 @@ def test_torch_twin_equals_the_numpy_recompose(walk) -> None:
     path = np.stack([np.linspace(0, 2, 59), np.linspace(1, 3, 59), np.linspace(0, 1, 59)], 1).astype(
         np.float32
     )
-    world = with_bone_lengths(recompose(local, path, face_travel=False))
+    world = fit_bone_lengths(recompose(local, path, face_travel=False))
     twin_world = place_on_path_torch(torch.as_tensor(local), torch.as_tensor(path)).numpy()
     np.testing.assert_allclose(twin_world, world, atol=1e-4)
 
