@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from motion_env.evaluation.metrics import joint_acceleration
 from motion_env.generation.feet import (
@@ -194,43 +195,33 @@ def test_arms_keep_the_decoded_wrists_where_a_forearm_collapses() -> None:
     np.testing.assert_allclose(same, pose, atol=5e-3)
 
 
-def test_a_straight_but_short_decoded_arm_bends_its_elbow_one_way() -> None:
-    """The decoder holds an arm straight but 10 % short; its elbow, off the line by noise alone,
-    must not flip from side to side between frames (it swung 20 cm a frame in a stream)."""
+@pytest.mark.parametrize(
+    ("arm", "share", "noise", "back", "step"),
+    [
+        (1, 0.9, 0.002, 0.02, 0.1),  # 10 % short: it swung 20 cm a frame in a stream
+        (0, 0.5, 0.003, 0.05, 0.05),  # half length as a hand is thrown up: it flipped at 250 m/s^2
+    ],
+)
+def test_a_straight_but_short_decoded_arm_bends_its_elbow_one_way(
+    arm: int, share: float, noise: float, back: float, step: float
+) -> None:
+    """The decoder holds an arm straight but short (`share` of its length); the wrist is kept
+    near its decoded place, so the elbow must bend, and its elbow, off the line by noise alone,
+    must not flip from side to side between frames."""
     pose = _pose()
     n = 30
     decoded = np.repeat(pose[None], n, axis=0)
-    shoulder, elbow, wrist = ARMS[1]
-    reach = 0.9 * (BONE_LENGTHS[elbow] + BONE_LENGTHS[wrist])
+    shoulder, elbow, wrist = ARMS[arm]
+    reach = share * (BONE_LENGTHS[elbow] + BONE_LENGTHS[wrist])
     down = np.array([0.0, -1.0, 0.0])
     decoded[:, wrist] = pose[shoulder] + reach * down
-    noise = np.random.default_rng(0).normal(0.0, 0.002, (n, 3))
-    decoded[:, elbow] = pose[shoulder] + 0.5 * reach * down + noise
+    jitter = np.random.default_rng(arm).normal(0.0, noise, (n, 3))
+    decoded[:, elbow] = pose[shoulder] + 0.5 * reach * down + jitter
     rebuilt = on_bone_lengths(decoded)
     side = rebuilt[:, elbow] - rebuilt[:, shoulder]
     # It bends back (-z for this pose), every frame; noise still wobbles it a few cm, no flip.
-    assert np.all(side[:, 2] < -0.02)
-    assert np.linalg.norm(np.diff(rebuilt[:, elbow], axis=0), axis=-1).max() < 0.1
-
-
-def test_an_arm_decoded_straight_at_half_length_bends_one_way() -> None:
-    """As a hand is thrown up the decoder can shrink both arm bones to half length and hold them
-    straight; the wrist is kept near its decoded place, so the elbow bends far (about 20 cm), and
-    the way it bends must not follow the decoded elbow's millimetres of noise (it flipped through
-    250 m/s^2 in a generated wave)."""
-    pose = _pose()
-    n = 30
-    decoded = np.repeat(pose[None], n, axis=0)
-    shoulder, elbow, wrist = ARMS[0]
-    reach = 0.5 * (BONE_LENGTHS[elbow] + BONE_LENGTHS[wrist])
-    down = np.array([0.0, -1.0, 0.0])
-    noise = np.random.default_rng(1).normal(0.0, 0.003, (n, 3))
-    decoded[:, wrist] = pose[shoulder] + reach * down
-    decoded[:, elbow] = pose[shoulder] + 0.5 * reach * down + noise
-    rebuilt = on_bone_lengths(decoded)
-    side = rebuilt[:, elbow] - rebuilt[:, shoulder]
-    assert np.all(side[:, 2] < -0.05)  # back, every frame
-    assert np.linalg.norm(np.diff(rebuilt[:, elbow], axis=0), axis=-1).max() < 0.05
+    assert np.all(side[:, 2] < -back)
+    assert np.linalg.norm(np.diff(rebuilt[:, elbow], axis=0), axis=-1).max() < step
 
 
 def _shin_foot(out: np.ndarray, leg: int) -> np.ndarray:
