@@ -249,7 +249,8 @@ STAGE_NAMES = ("decoded", "pelvis_out", "fitted", "composed", "feet", "physics")
 
 def placed_stages(pipe: Any, features: np.ndarray, path: np.ndarray) -> dict[str, np.ndarray]:
     """The joints after each stage of :meth:`Pipeline.place_clip` for decoded `features` (n, 263)
-    on a root `path` (>= n, 3): decoded (root-relative), composed, feet, physics."""
+    on a root `path` (>= n, 3): decoded (root-relative), that body on the bone lengths by either
+    rebuild (pelvis_out, fitted; on a still path), composed, feet, physics."""
     from motion_env.generation.feet import FootPinner
     from motion_env.generation.physics import apply_physics
     from motion_env.generation.recompose import local_pose_from_features, recompose

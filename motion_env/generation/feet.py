@@ -155,6 +155,7 @@ def two_bone_ik(
     bend_hint: np.ndarray | None = None,
     hint_weight: float = 0.05,
     hint_length: float = 0.0,
+    hint_fill: float = 0.0,
 ) -> tuple:
     """Analytic two-bone IK per frame: hip fixed, bone lengths kept, the ankle moved to the target.
 
@@ -167,7 +168,10 @@ def two_bone_ik(
     direction the toes point) adds a bias of `hint_weight` m (5 cm), so a straight leg bends
     that way; a hint shorter than `hint_length` m adds as much less (a foot pointing down has
     a short, noisy horizontal toe direction: given its whole weight, it swung the knee 4 cm
-    sideways for a frame at toe-off).
+    sideways for a frame at toe-off). With `hint_fill`, the bias grows by `hint_fill` times the bend
+    the target needs, in the measure that the limb does not show it (squared share): a limb held
+    straight but short, which must bend far to reach the target, bends the hint's way instead of
+    the way a few millimetres of noise put its middle joint.
 
     All (N, 3); returns (new knee, new ankle).
     """
@@ -180,9 +184,15 @@ def two_bone_ik(
     leg = ankle - hip
     axis0 = leg / np.maximum(vector_norm(leg, keepdims=True), 1e-9)
     bend = (knee - hip) - ((knee - hip) * axis0).sum(-1, keepdims=True) * axis0
+    a = (l1**2 - l2**2 + d_clamped**2) / (2 * d_clamped)
+    h = np.sqrt(np.maximum(l1**2 - a**2, 0.0))  # how far the knee stands off the hip-target line
     if bend_hint is not None:
         hint_n = vector_norm(bend_hint, keepdims=True)
-        bend = bend + hint_weight * bend_hint / np.maximum(hint_n, max(hint_length, 1e-9))
+        weight = hint_weight
+        if hint_fill:
+            missing = np.clip(1.0 - vector_norm(bend) / np.maximum(h, 1e-9), 0.0, 1.0)
+            weight = hint_weight + (hint_fill * h * missing**2)[:, None]
+        bend = bend + weight * bend_hint / np.maximum(hint_n, max(hint_length, 1e-9))
     pole = qrot(qbetween(axis0, u), bend)
     pole = pole - (pole * u).sum(-1, keepdims=True) * u
     pole_n = vector_norm(pole, keepdims=True)
@@ -190,8 +200,6 @@ def two_bone_ik(
     fallback = (ankle - knee) - ((ankle - knee) * u).sum(-1, keepdims=True) * u
     pole = np.where(pole_n > 1e-6, pole / np.maximum(pole_n, 1e-9), fallback)
     pole = pole / np.maximum(vector_norm(pole, keepdims=True), 1e-9)
-    a = (l1**2 - l2**2 + d_clamped**2) / (2 * d_clamped)
-    h = np.sqrt(np.maximum(l1**2 - a**2, 0.0))
     new_knee = hip + a[:, None] * u + h[:, None] * pole
     new_ankle = hip + d_clamped[:, None] * u
     return new_knee, new_ankle

@@ -141,8 +141,8 @@ ARMS: tuple[tuple[int, int, int], ...] = ((16, 18, 20), (17, 19, 21))
 ARM_SCALE = 1.05
 # The bias (m) towards bending back and out that an arm's elbow gets (see on_bone_lengths).
 ARM_BEND_HINT = 0.01
-# How much of the bend an arm needs but its decoded elbow does not show the bias fills in (see
-# on_bone_lengths: all of it where the decoded arm shows none, little where it shows most).
+# How much of the bend an arm needs but its decoded elbow does not show the bias fills in
+# (two_bone_ik's hint_fill: all of it where the decoded arm shows none, little where it shows most).
 ARM_BEND_FILL = 1.0
 
 
@@ -184,22 +184,12 @@ def on_bone_lengths(joints: np.ndarray) -> np.ndarray:
         # A decoded arm much shorter than the skeleton's but held straight (both bones at half
         # length as a hand is thrown up) must bend far to keep the wrist where it was decoded:
         # its own bend is noise, which flipped the elbow from one side to the other between
-        # frames (250 m/s^2). The bias grows with the share of the needed bend the arm does not
-        # show (squared: an arm bent most of the way keeps its own plane), so such an arm bends
-        # back and out.
-        upper = flat[:, elbow] - flat[:, shoulder]
-        reach = flat[:, wrist] - flat[:, shoulder]
-        along = (upper * reach).sum(-1) / np.maximum((reach * reach).sum(-1), 1e-12)
-        shown = np.linalg.norm(upper - along[:, None] * reach, axis=-1)
-        l1, l2 = np.linalg.norm(upper, axis=-1), np.linalg.norm(flat[:, wrist] - flat[:, elbow], axis=-1)
-        d = np.clip(np.linalg.norm(goal - flat[:, shoulder], axis=-1), np.abs(l1 - l2) + 1e-4, l1 + l2 - 1e-4)
-        a = (l1**2 - l2**2 + d**2) / (2 * d)
-        needed = np.sqrt(np.maximum(l1**2 - a**2, 0.0))
-        missing = np.clip(1.0 - shown / np.maximum(needed, 1e-9), 0.0, 1.0)
-        weight = ARM_BEND_HINT + ARM_BEND_FILL * needed * missing**2
+        # frames (250 m/s^2). ARM_BEND_FILL grows the bias with the bend it needs and does not
+        # show, so such an arm bends back and out.
         flat[:, elbow], flat[:, wrist] = two_bone_ik(
-            flat[:, shoulder], flat[:, elbow], flat[:, wrist], goal, hint, hint_weight=weight[:, None]
-        )
+            flat[:, shoulder], flat[:, elbow], flat[:, wrist], goal, hint,
+            hint_weight=ARM_BEND_HINT, hint_fill=ARM_BEND_FILL,
+        )  # fmt: skip
     return flat.reshape(shape).astype(np.float32)
 
 

@@ -15,13 +15,7 @@ import numpy as np
 import torch
 
 from motion_env.motion.features import features_to_joints, recover_root
-from motion_env.motion.kinematics import (
-    BONE_CHILDREN,
-    BONE_DEGREE,
-    BONE_INCIDENCE,
-    BONE_PARENTS,
-    FIT_ITERATIONS,
-)
+from motion_env.motion.kinematics import BONE_CHILDREN, BONE_PARENTS, BONE_SHARE, FIT_ITERATIONS
 from motion_env.motion.skeleton import (
     BONE_LENGTHS,
     FOOT_JOINTS,
@@ -73,31 +67,37 @@ def local_pose_torch(features: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
 
 def with_bone_lengths_torch(joints: torch.Tensor) -> torch.Tensor:
     """:func:`motion_env.motion.kinematics.with_bone_lengths` with the canonical lengths: (T, 22, 3)."""
-    lengths = joints.new_tensor(BONE_LENGTHS)
-    rest = joints.new_tensor(RAW_OFFSETS)
-    out = [joints[:, 0]]
-    for j in range(1, NUM_JOINTS):
-        vec = joints[:, j] - joints[:, PARENTS[j]]
-        norm = vec.norm(dim=-1, keepdim=True)
-        direction = torch.where(norm > 1e-9, vec / norm.clamp_min(1e-9), rest[j])
-        out.append(out[PARENTS[j]] + direction * lengths[j])
-    rebuilt = torch.stack(out, dim=1)
-    feet = list(FOOT_JOINTS)
-    lift = joints[:, feet, 1].min(dim=1).values - rebuilt[:, feet, 1].min(dim=1).values
-    return rebuilt + torch.stack([torch.zeros_like(lift), lift, torch.zeros_like(lift)], dim=-1)[:, None]
+    return _feet_at_height_torch(_rebuild_torch(joints, joints[:, 0]), joints)
 
 
 def fit_bone_lengths_torch(joints: torch.Tensor, iterations: int = FIT_ITERATIONS) -> torch.Tensor:
     """:func:`motion_env.motion.kinematics.fit_bone_lengths` with the canonical lengths: (T, 22, 3)."""
     target = joints.new_tensor(BONE_LENGTHS[BONE_CHILDREN])[:, None]
-    incidence, degree = joints.new_tensor(BONE_INCIDENCE), joints.new_tensor(BONE_DEGREE)[:, None]
+    share = joints.new_tensor(BONE_SHARE)
     x = joints
     for _ in range(int(iterations)):
         bone = x[:, BONE_CHILDREN] - x[:, BONE_PARENTS]
-        norm = bone.norm(dim=-1, keepdim=True)
-        excess = (1.0 - target / norm.clamp_min(1e-9)) * bone
-        x = x - 0.5 * torch.einsum("bj,tbk->tjk", incidence, excess) / degree
-    rebuilt = with_bone_lengths_torch(x - x[:, :1] + joints[:, :1])  # the pelvis where it was
+        excess = (1.0 - target / bone.norm(dim=-1, keepdim=True).clamp_min(1e-9)) * bone
+        x = x - torch.einsum("jb,tbk->tjk", share, excess)
+    return _feet_at_height_torch(_rebuild_torch(x, joints[:, 0]), joints)
+
+
+def _rebuild_torch(joints: torch.Tensor, pelvis: torch.Tensor) -> torch.Tensor:
+    """The poses of `joints` (T, 22, 3) rebuilt from `pelvis` (T, 3) outward along their bones'
+    directions, on the canonical lengths (a zero-length bone takes its rest direction)."""
+    lengths = joints.new_tensor(BONE_LENGTHS)
+    rest = joints.new_tensor(RAW_OFFSETS)
+    out = [pelvis]
+    for j in range(1, NUM_JOINTS):
+        vec = joints[:, j] - joints[:, PARENTS[j]]
+        norm = vec.norm(dim=-1, keepdim=True)
+        direction = torch.where(norm > 1e-9, vec / norm.clamp_min(1e-9), rest[j])
+        out.append(out[PARENTS[j]] + direction * lengths[j])
+    return torch.stack(out, dim=1)
+
+
+def _feet_at_height_torch(rebuilt: torch.Tensor, joints: torch.Tensor) -> torch.Tensor:
+    """`rebuilt` shifted up or down, per frame, so its lowest foot joint is as high as `joints`'."""
     feet = list(FOOT_JOINTS)
     lift = joints[:, feet, 1].min(dim=1).values - rebuilt[:, feet, 1].min(dim=1).values
     return rebuilt + torch.stack([torch.zeros_like(lift), lift, torch.zeros_like(lift)], dim=-1)[:, None]

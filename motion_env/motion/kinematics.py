@@ -274,20 +274,27 @@ def with_bone_lengths(joints: np.ndarray, lengths: np.ndarray = BONE_LENGTHS) ->
     joints: (T, 22, 3) (or (B, T, 22, 3): B clips); lengths: (22,). Returns float32 of the same shape.
     """
     joints = check_joints(joints, batched=True)
-    out = _rebuild(joints, joints[..., 0, :], _check_lengths(lengths))
+    return _feet_at_height(_rebuild(joints, joints[..., 0, :], _check_lengths(lengths)), joints)
+
+
+def _feet_at_height(rebuilt: np.ndarray, joints: np.ndarray) -> np.ndarray:
+    """`rebuilt` shifted up or down, per frame, so its lowest foot joint is as high as `joints`'
+    (float32)."""
     feet = list(FOOT_JOINTS)
-    out[..., 1] += (joints[..., feet, 1].min(axis=-1) - out[..., feet, 1].min(axis=-1))[..., None]
-    return out.astype(np.float32)
+    lift = joints[..., feet, 1].min(axis=-1) - rebuilt[..., feet, 1].min(axis=-1)
+    rebuilt[..., 1] += lift[..., None]
+    return rebuilt.astype(np.float32)
 
 
-# Each bone as (child, parent) and the joint-by-bone incidence of the skeleton's tree: +1 at a
-# bone's child, -1 at its parent (for :func:`fit_bone_lengths` and its torch twin).
+# Each bone as (child, parent), and BONE_SHARE (22, 21): how much of a bone's excess length each
+# joint takes up in a round of :func:`fit_bone_lengths` (and its torch twin): half of it at either
+# end, with the opposite sign at the parent, divided by the number of bones meeting at the joint.
 BONE_CHILDREN = np.arange(1, NUM_JOINTS)
 BONE_PARENTS = np.array(PARENTS[1:])
-BONE_INCIDENCE = np.zeros((NUM_JOINTS - 1, NUM_JOINTS))
-BONE_INCIDENCE[np.arange(NUM_JOINTS - 1), BONE_CHILDREN] = 1.0
-BONE_INCIDENCE[np.arange(NUM_JOINTS - 1), BONE_PARENTS] = -1.0
-BONE_DEGREE = np.abs(BONE_INCIDENCE).sum(axis=0)  # bones meeting at each joint
+_INCIDENCE = np.zeros((NUM_JOINTS, NUM_JOINTS - 1))
+_INCIDENCE[BONE_CHILDREN, np.arange(NUM_JOINTS - 1)] = 1.0
+_INCIDENCE[BONE_PARENTS, np.arange(NUM_JOINTS - 1)] = -1.0
+BONE_SHARE = (0.5 * _INCIDENCE / np.abs(_INCIDENCE).sum(axis=1, keepdims=True)).astype(np.float32)
 FIT_ITERATIONS = 6
 """Rounds of :func:`fit_bone_lengths`: bones within about 7 mm of their lengths before its exact
 rebuild, which then moves joints by 3-4 mm on average (1 cm of noise on every joint)."""
@@ -320,17 +327,14 @@ def fit_bone_lengths(
     x = np.ascontiguousarray(np.moveaxis(joints.astype(np.float32), -2, 0)).reshape(NUM_JOINTS, -1)
     frames = x.shape[1] // 3
     target = lengths[BONE_CHILDREN, None].astype(np.float32)
-    share = (0.5 * BONE_INCIDENCE.T / BONE_DEGREE[:, None]).astype(np.float32)  # a bone's excess to its ends
     for _ in range(int(iterations)):
         bone = (x[BONE_CHILDREN] - x[BONE_PARENTS]).reshape(NUM_JOINTS - 1, frames, 3)
         norm = np.sqrt(np.einsum("ijk,ijk->ij", bone, bone))
         excess = bone * (1.0 - target / np.maximum(norm, 1e-9))[..., None]  # what each bone is too long by
-        x = x - share @ excess.reshape(NUM_JOINTS - 1, -1)
+        x = x - BONE_SHARE @ excess.reshape(NUM_JOINTS - 1, -1)
     x = np.moveaxis(x.reshape(NUM_JOINTS, *joints.shape[:-2], 3), 0, -2).astype(np.float64)
-    out = _rebuild(x, joints[..., 0, :], lengths)  # the pelvis where it was (on the root path)
-    feet = list(FOOT_JOINTS)
-    out[..., 1] += (joints[..., feet, 1].min(axis=-1) - out[..., feet, 1].min(axis=-1))[..., None]
-    return out.astype(np.float32)
+    # The pelvis where it was (on the root path), the feet at their height.
+    return _feet_at_height(_rebuild(x, joints[..., 0, :], lengths), joints)
 
 
 def floor_height(joints: np.ndarray, percentile: float = 3.0) -> float:

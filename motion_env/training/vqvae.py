@@ -284,6 +284,28 @@ def _train_mode(model: VQVAE, freeze_encoder: bool) -> None:
         model.quantizer.eval()
 
 
+def _batch_losses(
+    model: VQVAE, config: VQVAETrainConfig, feats: list[torch.Tensor], clips: np.ndarray, starts: np.ndarray
+) -> dict[str, torch.Tensor]:
+    """The losses of one batch: windows ``starts`` of ``feats[clips]`` (after their history, with
+    ``config.context``), "loss" the total to minimise."""
+    window, device = config.window, config.device
+    if config.context:
+        crops, first = context_windows(feats, clips, starts, window, config.context, model.rate)
+        crops = crops.to(device)
+        full, _, q = model(crops)
+        recon, x = scored(full, first, window), scored(crops, first, window)
+        # No commitment term (the encoder is frozen); "commit" and "perplexity" are logged over
+        # the whole crops.
+        losses = {**q, **model.reconstruction_losses(recon, x)}
+    else:
+        x = torch.stack([feats[i][o : o + window] for i, o in zip(clips, starts, strict=True)]).to(device)
+        recon, _, losses = model(x)
+    extra = derivative_losses(recon, x, config, model.rate)
+    losses["loss"] = losses["loss"] + extra.pop("smooth") + read_channel_loss(recon, x, config.read_weight)
+    return {**losses, **extra}
+
+
 def train_vqvae(
     data_dir: str | Path,
     out_path: str | Path,
@@ -344,24 +366,12 @@ def train_vqvae(
         _train_mode(model, config.freeze_encoder)
         idx = rng.choice(len(feats), size=config.batch_size, p=weights)
         offs = (rng.random(config.batch_size) * lengths[idx]).astype(int)
-        if config.context:
-            crops, first = context_windows(feats, idx, offs, window, config.context, model.rate)
-            full, _, q = model(crops.to(device))
-            recon, x = scored(full, first, window), scored(crops.to(device), first, window)
-            # No commitment term (the encoder is frozen); "commit" and "perplexity" are logged
-            # over the whole crops.
-            losses = {**q, **model.reconstruction_losses(recon, x)}
-        else:
-            x = torch.stack([feats[i][o : o + window] for i, o in zip(idx, offs, strict=True)]).to(device)
-            recon, _, losses = model(x)
-        extra = derivative_losses(recon, x, config, model.rate)
-        read = read_channel_loss(recon, x, config.read_weight)
-        losses["loss"] = losses["loss"] + extra.pop("smooth") + read
+        losses = _batch_losses(model, config, feats, idx, offs)
         opt.zero_grad(set_to_none=True)
         losses["loss"].backward()
         torch.nn.utils.clip_grad_norm_(params, 1.0)
         opt.step()
-        return {k: float(v.detach()) for k, v in {**losses, **extra}.items()}
+        return {k: float(v.detach()) for k, v in losses.items()}
 
     result = loop.run_loop(
         CHECKPOINT_KIND, config, opt, train_step, warmup=min(200, config.steps // 10 + 1), start=start,
