@@ -23,7 +23,8 @@ stage methods causally, one token at a time, in the same order):
    normalisation);
 5. **compose** (:meth:`Pipeline.compose`): the decoded body, relative to its root, is placed on
    the root path and rebuilt on the skeleton's bone lengths (decoded legs come out up to 9 cm
-   short), its wrists where the decoder put them (:func:`~motion_env.generation.recompose.on_bone_lengths`);
+   short), its wrists where the decoder put them (:func:`~motion_env.generation.recompose.on_bone_lengths`),
+   and with one pelvis shape for the whole clip (:func:`~motion_env.motion.kinematics.hold_pelvis_shape`);
 6. **feet and physics** (:class:`~motion_env.generation.feet.FootPinner`,
    :mod:`motion_env.generation.physics`): feet the decoder marks as planted are pinned; then, with
    ``Pipeline.physics`` (on by default), the body's height is planned so that its centre of mass
@@ -69,6 +70,7 @@ from motion_env.models.pace import PaceRegressor
 from motion_env.models.path_features import LOOKAHEAD_FRAMES, token_path_features
 from motion_env.models.sampling import SamplingConfig
 from motion_env.models.vqvae import VQVAE, DecoderStream
+from motion_env.motion.kinematics import hold_pelvis_shape, pelvis_shape
 from motion_env.motion.skeleton import FOOT_CONTACT
 from motion_env.text.vocabulary import Vocabulary, caption_warning, reading_text
 
@@ -427,7 +429,12 @@ class Pipeline:
 
     # ------------------------------------------------------------------ 5. body on the path
     def compose(
-        self, features: np.ndarray, root_path: np.ndarray, num_frames: int, first: int = 0
+        self,
+        features: np.ndarray,
+        root_path: np.ndarray,
+        num_frames: int,
+        first: int = 0,
+        pelvis: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Decoded features (n, 263) on a root path (>= n, 3) -> world joints and the root path used
         (or B of each, (B, n, 263) and (B, m, 3), in one call: the stream's characters).
@@ -437,7 +444,10 @@ class Pipeline:
         `first` > 0 puts frames first..num_frames-1 only on the path (the stream's new frames of
         its window; the earlier ones still shape the direction of travel): placing the body and
         its bone lengths are per frame, so they are the same numbers as those frames of a call
-        with `first` 0.
+        with `first` 0. Every frame gets one pelvis shape
+        (:func:`~motion_env.motion.kinematics.hold_pelvis_shape`): `pelvis` (m, one per
+        character, or a number), the median of the frames placed where it is None or NaN (a whole
+        clip's own; the stream holds its first token's).
 
         Returns:
             (num_frames - first, 22, 3) joints before foot cleanup, (num_frames - first, 3) root
@@ -449,7 +459,9 @@ class Pipeline:
             local = np.concatenate([local, np.repeat(local[..., -1:, :, :], m - n, axis=-3)], axis=-3)
         path = align_heading_to_travel(root_path)[..., first:num_frames, :]
         joints = on_bone_lengths(recompose(local[..., first:num_frames, :, :], path, face_travel=False))
-        return joints, path
+        own = np.median(pelvis_shape(joints), axis=-1)
+        held = own if pelvis is None else np.where(np.isnan(pelvis), own, pelvis)
+        return hold_pelvis_shape(joints, np.asarray(held)[..., None]), path
 
     # ------------------------------------------------------------------ 6. feet and physics
     def place_clip(

@@ -46,6 +46,7 @@ from motion_env.generation.root_bending import bend_root, detour
 from motion_env.generation.torch_body import frame_yaw, local_pose_torch, place_on_path_torch
 from motion_env.models.normalizer import Normalizer
 from motion_env.models.vqvae import VQVAE
+from motion_env.motion.kinematics import pelvis_shape
 from motion_env.motion.skeleton import FOOT_CONTACT, FOOT_JOINTS, LOCAL_VEL, RIC, ROT6D
 from motion_env.motion.validation import CheckedConfig, NonNegativeFloat, PositiveInt
 from motion_env.objectives import HeightLimit, KeepOut, StayInside
@@ -230,6 +231,7 @@ def optimise_body(
     objectives: list,
     config: RefineConfig,
     keep: np.ndarray | None = None,
+    pelvis: float | None = None,
 ) -> tuple[np.ndarray, int]:
     """Gradient steps on one clip's latents or token logits (see the module docstring).
 
@@ -242,6 +244,8 @@ def optimise_body(
         objectives: costs of the world joints (T, 22, 3) -> 0-d tensor.
         keep: feature channels held as in `features` (the optimiser sees them fixed, and they
             come back unchanged), or None.
+        pelvis: the pelvis shape the composition holds (m; see
+            :meth:`~motion_env.generation.pipeline.Pipeline.compose`), or None for each body's own.
 
     Returns:
         (N * rate, 263) float32 features of the optimised clip, and the steps taken.
@@ -264,7 +268,7 @@ def optimise_body(
         return torch.where(held, sampled[: len(feats)], feats)
 
     def world() -> torch.Tensor:  # (T, 22, 3) the body the variables give, on the fixed path
-        return place_on_path_torch(local_pose_torch(decoded(), yaw), path_t)[:t_len]
+        return place_on_path_torch(local_pose_torch(decoded(), yaw), path_t, pelvis)[:t_len]
 
     opt = torch.optim.Adam([var.param], lr=config.lr * var.scale)
     steps = 0
@@ -364,6 +368,10 @@ def refine_clip(
     limits = [o for o in objectives if isinstance(o, HeightLimit)]
     areas = [o for o in objectives if isinstance(o, KeepOut | StayInside)]
     joints0, _ = pipe.compose(features, root_path, n)
+    # The optimiser's body holds the sampled clip's pelvis shape, as the composition will (its
+    # own, within millimetres): where it did not, the composition's shift moved targeted wrists
+    # after the optimiser had placed them (left_wrist / 1 frame of `eval control`: 0.97 -> 1.49 cm).
+    pelvis = float(np.median(pelvis_shape(joints0)))
     path = bend_root(root_path, joints0, targets, route)
     if areas:
         joints1, _ = pipe.compose(features, path, n)
@@ -386,7 +394,7 @@ def refine_clip(
         legs = ~np.isnan(targets[:, list(LEG_JOINTS), 0]).all()
         keep = None if legs or costs else LEG_CHANNELS
         optimised, steps = optimise_body(
-            pipe, codes, gpt_logits, features, aligned, reach, costs, config, keep
+            pipe, codes, gpt_logits, features, aligned, reach, costs, config, keep, pelvis
         )
         features = _smoothed_change(features, optimised, config.spread)
     contacts = features[:t_len, FOOT_CONTACT] > 0.5

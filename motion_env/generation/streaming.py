@@ -64,6 +64,7 @@ from motion_env.joint_targets import JointTargets
 from motion_env.models.controller_state import StateRing
 from motion_env.models.path_features import D_PATH, first_token_path_features
 from motion_env.models.sampling import sample_tokens
+from motion_env.motion.kinematics import pelvis_shape
 from motion_env.motion.skeleton import FEATURE_DIM, FOOT_CONTACT, NUM_JOINTS
 from motion_env.objectives import HeightLimit
 
@@ -143,6 +144,7 @@ class MotionStream(StreamPaths):
         self._states = StateRing(b, r, hid, dev)  # the controller's state and root per frame
         self._snapped = np.zeros((b, r, 3), np.float32)  # committed (snapped) root per frame
         self._features = np.zeros((b, r, FEATURE_DIM), np.float32)  # decoded features per frame
+        self._pelvis = np.full(b, np.nan)  # each character's pelvis shape, its first token's (compose)
         self._feet = FootPinner(b)
         self._physics = PhysicsFilter(b) if g.physics else None
         self._emitted = np.zeros(b, np.int64)
@@ -358,6 +360,7 @@ class MotionStream(StreamPaths):
         self._dirty[i] = self._predicted[i] = False
         self._pending.pop(int(i), None)
         self._decoder.reset([i])
+        self._pelvis[i] = np.nan
         self._feet.reset(i)
         if self._physics is not None:
             self._physics.reset(i)
@@ -492,6 +495,10 @@ class MotionStream(StreamPaths):
             roots = np.concatenate(
                 [self._snapped[at, span[:, :-rate]], np.stack([ahead[n] for n in sel])], axis=1
             )
-            j, path = self._pipe.compose(self._features[at, span], roots, int(length), int(length) - rate)
+            held = self._pelvis[rows[sel]]
+            j, path = self._pipe.compose(
+                self._features[at, span], roots, int(length), int(length) - rate, held
+            )
             joints[sel], paths[sel] = j, path
+            self._pelvis[rows[sel]] = np.where(np.isnan(held), np.median(pelvis_shape(j), axis=-1), held)
         return joints, paths

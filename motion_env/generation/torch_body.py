@@ -6,6 +6,7 @@
   the features' root frame and the hips-and-shoulders heading frame held fixed (:func:`frame_yaw`);
 - :func:`with_bone_lengths_torch`: :func:`motion_env.motion.kinematics.with_bone_lengths`;
 - :func:`fit_bone_lengths_torch`: :func:`motion_env.motion.kinematics.fit_bone_lengths`;
+- :func:`hold_pelvis_shape_torch`: :func:`motion_env.motion.kinematics.hold_pelvis_shape`;
 - :func:`place_on_path_torch`: :func:`~motion_env.generation.recompose.recompose` onto a fixed path.
 """
 
@@ -18,6 +19,7 @@ from motion_env.motion.features import features_to_joints, recover_root
 from motion_env.motion.kinematics import BONE_CHILDREN, BONE_PARENTS, BONE_SHARE, FIT_ITERATIONS
 from motion_env.motion.skeleton import (
     BONE_LENGTHS,
+    CHAINS,
     FOOT_JOINTS,
     NUM_JOINTS,
     PARENTS,
@@ -30,6 +32,7 @@ from motion_env.motion.trajectory import root_path_from_joints
 __all__ = [
     "fit_bone_lengths_torch",
     "frame_yaw",
+    "hold_pelvis_shape_torch",
     "local_pose_torch",
     "place_on_path_torch",
     "rotate_y_torch",
@@ -103,13 +106,39 @@ def _feet_at_height_torch(rebuilt: torch.Tensor, joints: torch.Tensor) -> torch.
     return rebuilt + torch.stack([torch.zeros_like(lift), lift, torch.zeros_like(lift)], dim=-1)[:, None]
 
 
-def place_on_path_torch(local: torch.Tensor, path: torch.Tensor) -> torch.Tensor:
+def place_on_path_torch(local: torch.Tensor, path: torch.Tensor, pelvis: float | None = None) -> torch.Tensor:
     """:func:`~motion_env.generation.recompose.recompose` (``face_travel=False``) on bone lengths
-    (:func:`fit_bone_lengths_torch`):
+    (:func:`fit_bone_lengths_torch`), with the pelvis shape `pelvis` held where given
+    (:func:`hold_pelvis_shape_torch`, as :meth:`~motion_env.generation.pipeline.Pipeline.compose` does):
     (T, 22, 3) local pose, (T, 3) path (x, z, heading; already turned to the travel) -> world joints."""
     local = (
         local - torch.stack([local[:, 0, 0], torch.zeros_like(local[:, 0, 0]), local[:, 0, 2]], -1)[:, None]
     )
     world = rotate_y_torch(local, path[:, None, 2])
     shift = torch.stack([path[:, 0], torch.zeros_like(path[:, 0]), path[:, 1]], dim=-1)
-    return fit_bone_lengths_torch(world + shift[:, None])
+    joints = fit_bone_lengths_torch(world + shift[:, None])
+    return joints if pelvis is None else hold_pelvis_shape_torch(joints, pelvis)
+
+
+# The legs as (hip, knee, ankle, toe), left then right, as in motion.kinematics.
+_LEGS = (CHAINS[1][1:], CHAINS[0][1:])
+
+
+def hold_pelvis_shape_torch(joints: torch.Tensor, shape: float) -> torch.Tensor:
+    """:func:`motion_env.motion.kinematics.hold_pelvis_shape` with one shape (m): (T, 22, 3)."""
+    left, right = joints[:, _LEGS[0][0]], joints[:, _LEGS[1][0]]
+    across = left - right
+    across = across / across.norm(dim=-1, keepdim=True).clamp_min(1e-9)
+    up = joints[:, CHAINS[2][1]] - 0.5 * (left + right)
+    up = up - (up * across).sum(-1, keepdim=True) * across
+    up = up / up.norm(dim=-1, keepdim=True).clamp_min(1e-9)
+    moves = torch.zeros_like(joints)
+    for leg in _LEGS:
+        bone = joints[:, leg[0]] - joints[:, 0]
+        length = bone.norm(dim=-1)
+        side = bone - (bone * up).sum(-1, keepdim=True) * up
+        along = torch.minimum(torch.maximum(-shape * torch.ones_like(length), -0.9 * length), 0.9 * length)
+        scale = (length**2 - along**2).sqrt() / side.norm(dim=-1).clamp_min(1e-9)
+        moved = joints[:, 0] + side * scale[:, None] + along[:, None] * up - joints[:, leg[0]]
+        moves[:, list(leg)] = moved[:, None].expand(-1, len(leg), -1)
+    return _feet_at_height_torch(joints + moves, joints)

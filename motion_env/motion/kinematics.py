@@ -49,8 +49,10 @@ __all__ = [
     "forward_kinematics",
     "from_heading_frame",
     "heading_from_joints",
+    "hold_pelvis_shape",
     "inverse_kinematics",
     "mirror",
+    "pelvis_shape",
     "resample",
     "rescale_bones",
     "rotate_y",
@@ -335,6 +337,63 @@ def fit_bone_lengths(
     x = np.moveaxis(x.reshape(NUM_JOINTS, *joints.shape[:-2], 3), 0, -2).astype(np.float64)
     # The pelvis where it was (on the root path), the feet at their height.
     return _feet_at_height(_rebuild(x, joints[..., 0, :], lengths), joints)
+
+
+# The legs as (hip, knee, ankle, toe), left then right (CHAINS' leg chains without the pelvis).
+_LEGS = (CHAINS[1][1:], CHAINS[0][1:])
+
+
+def _torso_up(joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(hips' centre (..., 3), unit torso axis (..., 3)): from the hips' centre to spine1, made
+    square to the line through the hips."""
+    left, right = joints[..., _LEGS[0][0], :], joints[..., _LEGS[1][0], :]
+    centre = 0.5 * (left + right)
+    across = left - right
+    across = across / np.maximum(np.linalg.norm(across, axis=-1, keepdims=True), 1e-9)
+    up = joints[..., CHAINS[2][1], :] - centre
+    up = up - (up * across).sum(-1, keepdims=True) * across
+    return centre, up / np.maximum(np.linalg.norm(up, axis=-1, keepdims=True), 1e-9)
+
+
+def pelvis_shape(joints: np.ndarray) -> np.ndarray:
+    """How far (m) the pelvis joint sits above the hips' centre along the torso: (..., 22, 3) -> (...).
+
+    The training takes place it either about 3 cm below the hips' centre (CMU) or about 3 cm above
+    it (Bandai Namco), and a decoder may move from one to the other within a clip: the hips slide
+    along the spine, which no rigid body does (:func:`hold_pelvis_shape`).
+    """
+    joints = check_joints(joints, batched=True).astype(np.float64)
+    centre, up = _torso_up(joints)
+    return ((joints[..., 0, :] - centre) * up).sum(-1)
+
+
+def hold_pelvis_shape(joints: np.ndarray, shape: float | np.ndarray) -> np.ndarray:
+    """Every frame's pelvis joint `shape` m above the hips' centre along the torso (see
+    :func:`pelvis_shape`): each hip turns about the pelvis joint, its bone's length kept, and its
+    leg moves with it; then the frame moves up or down so that its lowest foot joint stays as
+    high as it was. One shape for a clip makes its pelvis a rigid body, as the replay's humanoid
+    has it (a clip that slid 6.5 cm between the two shapes sank a foot 7 cm into the floor where
+    its shape was not the median one). Per frame, so streaming-safe.
+
+    joints: (T, 22, 3) (or (B, T, 22, 3)); shape: a number, or one per frame or per clip that
+    broadcasts against (T,) (or (B, T)): pass (B, 1) for one per clip. Returns float32.
+    """
+    joints = check_joints(joints, batched=True)
+    out = joints.astype(np.float64)
+    held = np.broadcast_to(np.asarray(shape, dtype=np.float64), out.shape[:-2])
+    if not np.isfinite(held).all():
+        raise ValueError("shape must be finite (metres above the hips' centre)")
+    _, up = _torso_up(out)
+    for leg in _LEGS:
+        hip = leg[0]
+        bone = out[..., hip, :] - out[..., 0, :]
+        length = np.linalg.norm(bone, axis=-1)
+        side = bone - (bone * up).sum(-1, keepdims=True) * up  # the bone square to the torso
+        along = np.clip(-held, -0.9 * length, 0.9 * length)  # a hip below the pelvis: -shape
+        scale = np.sqrt(length**2 - along**2) / np.maximum(np.linalg.norm(side, axis=-1), 1e-9)
+        moved = out[..., 0, :] + side * scale[..., None] + along[..., None] * up - out[..., hip, :]
+        out[..., list(leg), :] += moved[..., None, :]
+    return _feet_at_height(out, joints)
 
 
 def floor_height(joints: np.ndarray, percentile: float = 3.0) -> float:

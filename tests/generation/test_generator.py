@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from motion_env.generation.generator import WEIGHT_FILES, MotionGenerator, SamplingConfig
+from motion_env.motion.kinematics import pelvis_shape
 from motion_env.motion.skeleton import FPS, NUM_JOINTS
 from motion_env.motion.types import Motion
 
@@ -80,6 +81,22 @@ def test_stream_shapes_and_root_path_match_whole_clips(gen: MotionGenerator) -> 
     clips = gen.generate_batch(texts, num_frames=30, seed=2)
     for b in range(2):
         np.testing.assert_allclose(_pelvis_xz(frames[b]), _pelvis_xz(clips[b].joints), atol=1e-4)
+
+
+def test_clips_and_streams_keep_one_pelvis_shape(gen: MotionGenerator) -> None:
+    # The random decoder's hips wander along the spine from frame to frame; each clip and each
+    # streamed character gets one pelvis shape (the clip's median, the stream's first token's),
+    # which the feet and physics stages after the composition leave as it is.
+    clip = gen.generate("a person walks", num_frames=40, seed=5).joints
+    shape = pelvis_shape(clip)
+    assert np.ptp(shape) < 1e-4  # 1.1 mm without the hold
+    stream = gen.stream(["a person walks", "a person runs"], seed=5)
+    frames = np.stack([stream.step() for _ in range(16)], axis=1)
+    stream.reset(1, "a person waves")
+    later = np.stack([stream.step() for _ in range(12)], axis=1)
+    for b in range(2):
+        assert np.ptp(pelvis_shape(frames[b])) < 1e-4 and np.ptp(pelvis_shape(later[b])) < 1e-4
+    np.testing.assert_allclose(pelvis_shape(later[0]), pelvis_shape(frames[0])[0], atol=1e-4)
 
 
 def test_stream_is_seeded(gen: MotionGenerator) -> None:

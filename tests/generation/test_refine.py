@@ -22,7 +22,7 @@ from motion_env.generation.feet import two_bone_ik
 from motion_env.generation.recompose import local_pose_from_features, recompose
 from motion_env.generation.torch_body import frame_yaw, local_pose_torch, place_on_path_torch
 from motion_env.motion.features import joints_to_features
-from motion_env.motion.kinematics import bone_lengths, fit_bone_lengths, with_bone_lengths
+from motion_env.motion.kinematics import bone_lengths, fit_bone_lengths, hold_pelvis_shape, with_bone_lengths
 from motion_env.motion.skeleton import BONE_LENGTHS, JOINT_INDEX
 from motion_env.objectives import HeightLimit, KeepOut
 
@@ -52,6 +52,8 @@ def test_torch_twin_equals_the_numpy_recompose(walk) -> None:
     world = fit_bone_lengths(recompose(local, path, face_travel=False))
     twin_world = place_on_path_torch(torch.as_tensor(local), torch.as_tensor(path)).numpy()
     np.testing.assert_allclose(twin_world, world, atol=1e-4)
+    held = place_on_path_torch(torch.as_tensor(local), torch.as_tensor(path), 0.033).numpy()
+    np.testing.assert_allclose(held, hold_pelvis_shape(world, 0.033), atol=1e-4)
 
 
 def test_residual_field_interpolates_fades_and_holds() -> None:

@@ -315,6 +315,37 @@ def test_fitted_bones_do_not_jitter_far_from_the_pelvis() -> None:
         M.fit_bone_lengths(canonical, iterations=-1)
 
 
+def test_held_pelvis_shape_is_one_rigid_pelvis_with_the_legs_and_feet_kept() -> None:
+    # A clip whose hips slide along the spine from 3 cm below the pelvis joint to 3 cm above it
+    # (the two mocap sources' shapes, mixed by a decoder) gets one shape for every frame.
+    clip = _synthetic_clip(seed=4)
+    slide = np.linspace(-0.03, 0.03, len(clip))
+    _, up = kinematics._torso_up(clip.astype(np.float64))
+    sliding = clip.copy()
+    for leg in kinematics._LEGS:
+        sliding[:, list(leg)] += (slide[:, None] * up)[:, None].astype(np.float32)
+    shape = M.pelvis_shape(sliding)
+    assert shape.max() - shape.min() > 0.02
+    held = M.hold_pelvis_shape(sliding, 0.033)
+    np.testing.assert_allclose(M.pelvis_shape(held), 0.033, atol=2e-4)
+    lengths = M.bone_lengths(sliding)
+    np.testing.assert_allclose(M.bone_lengths(held), lengths, atol=1e-5)  # the hips turn, not stretch
+    np.testing.assert_allclose(held[:, 0, [0, 2]], sliding[:, 0, [0, 2]], atol=1e-6)  # the root path
+    feet = list(S.FOOT_JOINTS)
+    np.testing.assert_allclose(held[:, feet, 1].min(1), sliding[:, feet, 1].min(1), atol=1e-5)
+    # The legs move rigidly with their hips; the torso and arms only up or down with the frame.
+    knee_from_hip = held[:, 4] - held[:, 1]
+    np.testing.assert_allclose(knee_from_hip, sliding[:, 4] - sliding[:, 1], atol=1e-5)
+    np.testing.assert_allclose(held[:, 20] - held[:, 0], sliding[:, 20] - sliding[:, 0], atol=1e-5)
+    # One shape per clip in a batch; a clip at its shape stays (to a fraction of a millimetre: the
+    # torso's axis, taken from the hips, turns a little as they move).
+    both = M.hold_pelvis_shape(np.stack([sliding, held]), np.array([[0.033], [0.033]]))
+    np.testing.assert_allclose(both[0], held, atol=1e-6)
+    np.testing.assert_allclose(both[1], held, atol=5e-4)
+    with pytest.raises(ValueError, match="shape must be finite"):
+        M.hold_pelvis_shape(sliding, np.nan)
+
+
 def test_vector_norm_and_cross_give_numpys_numbers() -> None:
     from motion_env.motion.rotations import cross, vector_norm
 
