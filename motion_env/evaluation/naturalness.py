@@ -7,6 +7,10 @@ dataset's ``index.csv``) gives up to ``per_action`` of its takes (seeded choice)
   templates' wording of its labels), from the take's start, along its root path continued one
   second past its end (:func:`extended_path`: the takes are cuts of longer motion), with timed
   waypoints every second where the take travels (:func:`travel_waypoints`), cut to its length;
+- stage ``streamed``: the same request (caption, start, timed waypoints) made frame by frame by
+  the stream (:meth:`~motion_env.generation.generator.MotionGenerator.stream`), as the
+  environments emit it: the causal stages (the decoder's history, the streamed foot pin and
+  physics, the path's residuals spread as it goes) instead of the whole clip's;
 - stage ``vqvae``: the take's features encoded and decoded by the VQ-VAE alone, the decoded body
   placed on the take's real root path and its feet pinned as the generator does (stages 4-6 of
   :mod:`motion_env.generation.pipeline`, without the physics stage): what the tokenizer alone
@@ -70,7 +74,7 @@ __all__ = [
     "travel_waypoints",
 ]
 
-STAGES = ("generated", "vqvae")
+STAGES = ("generated", "streamed", "vqvae")
 TRAVEL_SPEED = 0.25  # m/s: a second in which the root moves slower than this gets no waypoint
 POP_FACTOR = 1.5  # a clip pops when its largest joint acceleration exceeds this x the real p99.9
 MIN_FRAMES = 20  # 1 s: the shortest clip the replay judges
@@ -85,7 +89,8 @@ class NaturalnessSettings:
         split: the held-out split: "test" to report, "val" to choose between models.
         per_action: clips per action (the action's takes, seeded choice, when it has more).
         seed: the choice of takes, the real-vs-real halves and the generator's seed.
-        stage: "generated" (the whole generator) or "vqvae" (the real takes through the VQ-VAE).
+        stage: "generated" (the whole generator), "streamed" (the same, frame by frame) or "vqvae"
+            (the real takes through the VQ-VAE).
         min_takes: an action is reported when the split has at least this many takes of it.
         classifier: the classifier checkpoint whose features the distances use (None: shipped).
     """
@@ -183,6 +188,14 @@ def _generated(gen: Any, take: NaturalTake, seed: int) -> np.ndarray:
     waypoints = travel_waypoints(path)
     motion = gen.generate(take.text, waypoints, len(path), seed=seed, start=path[0], infeasible="warn")
     return motion.joints[:t_len]
+
+
+def _streamed(gen: Any, take: NaturalTake, seed: int) -> np.ndarray:
+    """The request of :func:`_generated`, made frame by frame by one streamed character."""
+    t_len = len(take.joints)
+    path = extended_path(root_path_from_joints(take.joints))
+    stream = gen.stream([take.text], [travel_waypoints(path)], starts=path[:1], seed=seed, infeasible="warn")
+    return np.stack([stream.step()[0] for _ in range(t_len)])
 
 
 def _vqvae(gen: Any, take: NaturalTake) -> np.ndarray:
@@ -328,7 +341,7 @@ class NaturalnessResult:
     """What :func:`evaluate_naturalness` measured: a row per action and one over all of them.
 
     Attributes:
-        stage: "generated" or "vqvae".
+        stage: one of :data:`STAGES`.
         split: the split the takes come from.
         actions: action -> its :class:`NaturalnessRow`.
         overall: all the actions' clips together (pops against each clip's own action).
@@ -433,9 +446,11 @@ def evaluate_naturalness(gen: Any, settings: NaturalnessSettings, progress: bool
         made, real = _Clips(), _Clips()
         for take in chosen[action]:
             bar.set_postfix_str(action, refresh=False)
-            made.add(
-                _generated(gen, take, settings.seed) if settings.stage == "generated" else _vqvae(gen, take)
-            )
+            if settings.stage == "vqvae":
+                made.add(_vqvae(gen, take))
+            else:
+                make = _generated if settings.stage == "generated" else _streamed
+                made.add(make(gen, take, settings.seed))
             real.add(take.joints)
             bar.update(1)
         real_accel = np.concatenate([joint_acceleration(t.joints).ravel() for t in ts])

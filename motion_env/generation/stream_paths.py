@@ -15,7 +15,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from motion_env.generation.recompose import route_anchors, spread_residuals
+from motion_env.generation.pipeline import PATH_SMOOTHING
+from motion_env.generation.recompose import route_anchors, smooth_path, spread_residuals
 from motion_env.generation.route_planning import plan_route
 
 __all__ = ["CATCH_UP_TOKENS", "StreamPaths"]
@@ -23,6 +24,9 @@ __all__ = ["CATCH_UP_TOKENS", "StreamPaths"]
 # After a predicted look-ahead the roll-out advances by up to this many tokens' frames per token
 # until it is a horizon ahead again (a token's cost stays bounded while it catches up).
 CATCH_UP_TOKENS = 2
+# Past frames of the controller's path that its smoothing (PATH_SMOOTHING, as whole clips') reads
+# before the anchor: the Gaussian's reach, so a committed frame is smoothed as in the whole path.
+_SMOOTH_PAST = int(4 * PATH_SMOOTHING) + 1
 
 
 class StreamPaths:
@@ -100,6 +104,24 @@ class StreamPaths:
         roots = self._head.predict(self._pipe.controller, sub).cpu().numpy()  # (N, H, 3)
         self._states.record_roots(rows[short], target[short], roots, (last - target)[short])
 
+    def _smooth(self, rows: np.ndarray, anchor: np.ndarray, count: np.ndarray, raw: np.ndarray) -> None:
+        """Smooth in place the controller paths `raw` (N, L, 3) over frames anchor.. (the first
+        `count` of each row) of the rows with a route, as a whole clip's path is
+        (:data:`~motion_env.generation.pipeline.PATH_SMOOTHING`), reading the frames before the
+        anchor: each frame a token commits is the one the whole path smoothed gives. The
+        controller brakes and surges where it passes a timed waypoint (a streamed run's root
+        2.7 -> 1.7 -> 2.5 m/s in two frames, which the replay's root force rejects). Rows alike
+        (past frames, length) in one call."""
+        routed = np.array([self._routes[i] is not None for i in rows], bool)
+        back = np.minimum(anchor, _SMOOTH_PAST)  # the episode's frame 0 is reflected, as whole clips'
+        for b, c in {(int(b), int(c)) for b, c in zip(back[routed], count[routed], strict=True)}:
+            sel = np.nonzero(routed & (back == b) & (count == c))[0]
+            past = (anchor[sel, None] - b + np.arange(b)) % self._ring
+            whole = np.concatenate(
+                [self._states.roots[rows[sel, None], past].astype(np.float64), raw[sel, :c]], 1
+            )
+            raw[sel, :c] = smooth_path(whole, PATH_SMOOTHING)[:, b:]
+
     def _snap_ahead(self, i: int, anchor: int, path: np.ndarray, queue: int) -> np.ndarray:
         """Character i's root path over frames anchor..anchor + len(path) - 1, continuing its
         committed path: `path` (float64), the controller's shifted so that the anchor frame sits
@@ -140,6 +162,7 @@ class StreamPaths:
         count = first + self._horizon - anchor + 1  # frames anchor..first + horizon
         slots = (anchor[:, None] + np.arange(int(count.max()))) % self._ring
         raw = self._states.roots[rows[:, None], slots].astype(np.float64)  # (N, L, 3)
+        self._smooth(rows, anchor, count, raw)
         paths = raw.copy()
         paths[..., :2] += (self._snapped[rows, anchor % self._ring, :2] - raw[:, 0, :2])[:, None]
         rows_t = torch.as_tensor(rows, device=self._states.queue.device)

@@ -14,11 +14,13 @@ from motion_env.evaluation.metrics import diversity, frechet_distance, joint_acc
 from motion_env.evaluation.naturalness import (
     NaturalnessSettings,
     evaluate_naturalness,
+    extended_path,
     mix_weights,
     naturalness_takes,
     travel_waypoints,
 )
 from motion_env.models.classifier import save_classifier
+from motion_env.motion.trajectory import root_path_from_joints
 from motion_env.text.encoders import TextEncoder
 
 # Takes per action of the synthetic test split: "walk" is reported, "wave-right-hand" has too few.
@@ -167,7 +169,7 @@ def test_takes_by_action_with_enough_takes(natural_dataset: Path) -> None:
     assert first.text == "a person does a walk" and first.joints.shape == (FRAMES, 22, 3)
 
 
-@pytest.mark.parametrize("stage", ["generated", "vqvae"])
+@pytest.mark.parametrize("stage", ["generated", "streamed", "vqvae"])
 def test_report_on_the_random_model(tiny_generator, natural_dataset, classifier_file, stage: str) -> None:
     settings = NaturalnessSettings(
         data=natural_dataset, per_action=2, stage=stage, classifier=classifier_file
@@ -184,6 +186,23 @@ def test_report_on_the_random_model(tiny_generator, natural_dataset, classifier_
     assert data["stage"] == stage and data["actions"]["walk"]["clips"] == 2
     text = result.format()
     assert "walk" in text and "\nall " in text
+
+
+def test_streamed_and_whole_clips_make_the_same_request(tiny_generator, natural_dataset) -> None:
+    # Same caption, start and timed waypoints: frame by frame, the root passes the take's
+    # waypoints as the whole clip does (both snap the path through them).
+    from motion_env.evaluation.naturalness import _generated, _streamed
+
+    take = naturalness_takes(natural_dataset, "test")["walk"][0]
+    whole, streamed = _generated(tiny_generator, take, 0), _streamed(tiny_generator, take, 0)
+    assert streamed.shape == whole.shape == take.joints.shape
+    wp = travel_waypoints(extended_path(root_path_from_joints(take.joints)))
+    inside = wp[wp[:, 2] < len(take.joints)]
+    assert len(inside) >= 2
+    for x, z, frame in inside:
+        for joints in (whole, streamed):
+            np.testing.assert_allclose(joints[int(frame), 0, [0, 2]], [x, z], atol=1e-3)
+    assert np.abs(streamed - whole).max() > 1e-3  # the causal stages are not the whole clip's
 
 
 def test_cli_writes_the_report(tiny_generator, natural_dataset, classifier_file, tmp_path, capsys) -> None:

@@ -99,6 +99,29 @@ def test_clips_and_streams_keep_one_pelvis_shape(gen: MotionGenerator) -> None:
     np.testing.assert_allclose(pelvis_shape(later[0]), pelvis_shape(frames[0])[0], atol=1e-4)
 
 
+def test_streamed_path_is_smoothed_as_whole_clips_and_passes_timed_waypoints(
+    pretrained_generator, monkeypatch
+) -> None:
+    # The trained controller brakes and surges where it passes a timed waypoint; the stream smooths
+    # its path before bending it through them (PATH_SMOOTHING), as whole clips do: the root
+    # accelerates far less (30.9 -> 11.2 m/s^2 at most here) and still passes them exactly.
+    from motion_env.generation import stream_paths
+
+    route = [[0.0, 2.5, 20], [0.3, 5.2, 40], [0.5, 8.0, 60]]
+
+    def root_accel_and_misses() -> tuple[np.ndarray, float]:
+        stream = pretrained_generator.stream(["a person runs"], [route], seed=3)
+        xz = _pelvis_xz(np.stack([stream.step()[0] for _ in range(61)]))
+        misses = max(np.linalg.norm(xz[f] - [x, z]) for x, z, f in route)
+        return np.linalg.norm(np.diff(xz, n=2, axis=0), axis=-1) * FPS**2, misses
+
+    smoothed, missed = root_accel_and_misses()
+    monkeypatch.setattr(stream_paths, "PATH_SMOOTHING", 0.0)
+    raw, raw_missed = root_accel_and_misses()
+    assert missed < 1e-4 and raw_missed < 1e-4
+    assert smoothed.max() < 0.6 * raw.max() and smoothed.mean() < 0.6 * raw.mean()
+
+
 def test_stream_is_seeded(gen: MotionGenerator) -> None:
     def run() -> np.ndarray:
         s = gen.stream(["a person walks", "a person jumps"], [ROUTE, None], seed=11)
