@@ -25,6 +25,7 @@ from motion_env.motion.rotations import (
     qnormalize,
     qrot,
     quat_from_yaw,
+    vector_norm,
 )
 from motion_env.motion.skeleton import (
     BONE_LENGTHS,
@@ -341,6 +342,7 @@ def fit_bone_lengths(
 
 # The legs as (hip, knee, ankle, toe), left then right (CHAINS' leg chains without the pelvis).
 _LEGS = (CHAINS[1][1:], CHAINS[0][1:])
+_HIPS, _LEG_JOINTS = [leg[0] for leg in _LEGS], np.array(_LEGS)
 
 
 def _torso_up(joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -349,10 +351,10 @@ def _torso_up(joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     left, right = joints[..., _LEGS[0][0], :], joints[..., _LEGS[1][0], :]
     centre = 0.5 * (left + right)
     across = left - right
-    across = across / np.maximum(np.linalg.norm(across, axis=-1, keepdims=True), 1e-9)
+    across = across / np.maximum(vector_norm(across, keepdims=True), 1e-9)
     up = joints[..., CHAINS[2][1], :] - centre
     up = up - (up * across).sum(-1, keepdims=True) * across
-    return centre, up / np.maximum(np.linalg.norm(up, axis=-1, keepdims=True), 1e-9)
+    return centre, up / np.maximum(vector_norm(up, keepdims=True), 1e-9)
 
 
 def pelvis_shape(joints: np.ndarray) -> np.ndarray:
@@ -384,15 +386,14 @@ def hold_pelvis_shape(joints: np.ndarray, shape: float | np.ndarray) -> np.ndarr
     if not np.isfinite(held).all():
         raise ValueError("shape must be finite (metres above the hips' centre)")
     _, up = _torso_up(out)
-    for leg in _LEGS:
-        hip = leg[0]
-        bone = out[..., hip, :] - out[..., 0, :]
-        length = np.linalg.norm(bone, axis=-1)
-        side = bone - (bone * up).sum(-1, keepdims=True) * up  # the bone square to the torso
-        along = np.clip(-held, -0.9 * length, 0.9 * length)  # a hip below the pelvis: -shape
-        scale = np.sqrt(length**2 - along**2) / np.maximum(np.linalg.norm(side, axis=-1), 1e-9)
-        moved = out[..., 0, :] + side * scale[..., None] + along[..., None] * up - out[..., hip, :]
-        out[..., list(leg), :] += moved[..., None, :]
+    up = up[..., None, :]  # (..., 1, 3): both legs at once
+    bone = out[..., _HIPS, :] - out[..., :1, :]  # (..., 2, 3)
+    length = vector_norm(bone)
+    side = bone - (bone * up).sum(-1, keepdims=True) * up  # the bones square to the torso
+    along = np.minimum(np.maximum(-held[..., None], -0.9 * length), 0.9 * length)  # hips below: -shape
+    scale = np.sqrt(length**2 - along**2) / np.maximum(vector_norm(side), 1e-9)
+    moved = side * scale[..., None] + along[..., None] * up - bone  # (..., 2, 3)
+    out[..., _LEG_JOINTS, :] += moved[..., None, :]  # each leg rigidly with its hip
     return _feet_at_height(out, joints)
 
 
