@@ -275,7 +275,7 @@ def placed_stages(pipe: Any, features: np.ndarray, path: np.ndarray) -> dict[str
 
 def planted_slide(joints: np.ndarray, contacts: np.ndarray) -> list[float]:
     """Horizontal steps (m) of each ankle between frames where both its contacts are on."""
-    from motion_env.generation.feet import LEGS
+    from motion_env.motion.skeleton import LEGS
 
     out: list[float] = []
     for leg, (_, _, ankle, _) in enumerate(LEGS):

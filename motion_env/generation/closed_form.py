@@ -35,8 +35,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import solveh_banded
 
-from motion_env.generation.feet import LEGS, soft_limit
-from motion_env.motion.skeleton import JOINT_NAMES, NUM_JOINTS
+from motion_env.generation.feet import soft_limit
+from motion_env.motion.skeleton import JOINT_NAMES, LEGS, NUM_JOINTS
 
 __all__ = [
     "MARGIN",

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from motion_env.motion.rotations import qbetween, qrot, vector_norm
+from motion_env.motion.skeleton import LEGS
 
 __all__ = [
     "ANKLE_BISECTIONS",
@@ -20,7 +21,6 @@ __all__ = [
     "FOOT_MAX_OFFSET",
     "FOOT_SOFTNESS",
     "FOOT_STRETCH",
-    "LEGS",
     "TOE_HINT_LENGTH",
     "FootPinner",
     "ankle_room",
@@ -30,8 +30,6 @@ __all__ = [
     "two_bone_ik",
 ]
 
-# Legs as (hip, knee, ankle, toe).
-LEGS: tuple[tuple[int, int, int, int], ...] = ((1, 4, 7, 10), (2, 5, 8, 11))
 # Frames over which a released foot's correction fades out (:func:`release_fade`).
 FOOT_BLEND = 6
 # The largest correction (m) a pinned foot gets; a foot the body drags farther (its stride does

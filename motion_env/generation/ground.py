@@ -12,9 +12,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from motion_env.generation.feet import LEGS, TOE_HINT_LENGTH, two_bone_ik
+from motion_env.generation.feet import TOE_HINT_LENGTH, two_bone_ik
 from motion_env.motion.mass import centre_of_mass
 from motion_env.motion.rotations import vector_norm
+from motion_env.motion.skeleton import LEGS
 
 __all__ = [
     "FLAT_ANKLE_HEIGHT",

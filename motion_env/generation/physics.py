@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from motion_env.generation.feet import LEGS
 from motion_env.generation.ground import (
     FLAT_ANKLE_HEIGHT,
     FLAT_ANKLE_RANGE,
@@ -47,7 +46,7 @@ from motion_env.generation.ground import (
 from motion_env.generation.height_plan import GRAVITY, STANCE_ACCELERATION, plan_heights
 from motion_env.motion.mass import centre_of_mass
 from motion_env.motion.rotations import vector_norm
-from motion_env.motion.skeleton import FOOT_JOINTS, FPS, NUM_JOINTS
+from motion_env.motion.skeleton import FOOT_JOINTS, FPS, LEGS, NUM_JOINTS
 
 __all__ = [
     "GRAVITY",

@@ -459,9 +459,10 @@ class Pipeline:
             local = np.concatenate([local, np.repeat(local[..., -1:, :, :], m - n, axis=-3)], axis=-3)
         path = align_heading_to_travel(root_path)[..., first:num_frames, :]
         joints = on_bone_lengths(recompose(local[..., first:num_frames, :, :], path, face_travel=False))
-        own = np.median(pelvis_shape(joints), axis=-1)
-        held = own if pelvis is None else np.where(np.isnan(pelvis), own, pelvis)
-        return hold_pelvis_shape(joints, np.asarray(held)[..., None]), path
+        held = np.full(joints.shape[:-3], np.nan) if pelvis is None else np.asarray(pelvis, np.float64)
+        if np.isnan(held).any():  # the frames' own median
+            held = np.where(np.isnan(held), np.median(pelvis_shape(joints), axis=-1), held)
+        return hold_pelvis_shape(joints, held[..., None]), path
 
     # ------------------------------------------------------------------ 6. feet and physics
     def place_clip(

@@ -500,5 +500,7 @@ class MotionStream(StreamPaths):
                 self._features[at, span], roots, int(length), int(length) - rate, held
             )
             joints[sel], paths[sel] = j, path
-            self._pelvis[rows[sel]] = np.where(np.isnan(held), np.median(pelvis_shape(j), axis=-1), held)
+            first_token = np.isnan(held)
+            if first_token.any():  # from now on these characters hold the shape their first token got
+                self._pelvis[rows[sel][first_token]] = np.median(pelvis_shape(j[first_token]), axis=-1)
         return joints, paths

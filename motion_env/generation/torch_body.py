@@ -21,6 +21,7 @@ from motion_env.motion.skeleton import (
     BONE_LENGTHS,
     CHAINS,
     FOOT_JOINTS,
+    LEGS,
     NUM_JOINTS,
     PARENTS,
     RAW_OFFSETS,
@@ -120,25 +121,23 @@ def place_on_path_torch(local: torch.Tensor, path: torch.Tensor, pelvis: float |
     return joints if pelvis is None else hold_pelvis_shape_torch(joints, pelvis)
 
 
-# The legs as (hip, knee, ankle, toe), left then right, as in motion.kinematics.
-_LEGS = (CHAINS[1][1:], CHAINS[0][1:])
+_HIPS, _LEG_JOINTS = [leg[0] for leg in LEGS], np.array(LEGS)
 
 
 def hold_pelvis_shape_torch(joints: torch.Tensor, shape: float) -> torch.Tensor:
     """:func:`motion_env.motion.kinematics.hold_pelvis_shape` with one shape (m): (T, 22, 3)."""
-    left, right = joints[:, _LEGS[0][0]], joints[:, _LEGS[1][0]]
+    left, right = joints[:, _HIPS[0]], joints[:, _HIPS[1]]
     across = left - right
     across = across / across.norm(dim=-1, keepdim=True).clamp_min(1e-9)
     up = joints[:, CHAINS[2][1]] - 0.5 * (left + right)
     up = up - (up * across).sum(-1, keepdim=True) * across
-    up = up / up.norm(dim=-1, keepdim=True).clamp_min(1e-9)
+    up = (up / up.norm(dim=-1, keepdim=True).clamp_min(1e-9))[:, None]  # (T, 1, 3): both legs at once
+    bone = joints[:, _HIPS] - joints[:, :1]  # (T, 2, 3)
+    length = bone.norm(dim=-1)
+    side = bone - (bone * up).sum(-1, keepdim=True) * up
+    along = torch.minimum(torch.maximum(torch.full_like(length, -shape), -0.9 * length), 0.9 * length)
+    scale = (length**2 - along**2).sqrt() / side.norm(dim=-1).clamp_min(1e-9)
+    moved = side * scale[..., None] + along[..., None] * up - bone  # (T, 2, 3)
     moves = torch.zeros_like(joints)
-    for leg in _LEGS:
-        bone = joints[:, leg[0]] - joints[:, 0]
-        length = bone.norm(dim=-1)
-        side = bone - (bone * up).sum(-1, keepdim=True) * up
-        along = torch.minimum(torch.maximum(-shape * torch.ones_like(length), -0.9 * length), 0.9 * length)
-        scale = (length**2 - along**2).sqrt() / side.norm(dim=-1).clamp_min(1e-9)
-        moved = joints[:, 0] + side * scale[:, None] + along[:, None] * up - joints[:, leg[0]]
-        moves[:, list(leg)] = moved[:, None].expand(-1, len(leg), -1)
+    moves[:, _LEG_JOINTS] = moved[:, :, None].expand(-1, -1, _LEG_JOINTS.shape[1], -1)  # legs with their hips
     return _feet_at_height_torch(joints + moves, joints)

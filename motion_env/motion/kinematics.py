@@ -32,6 +32,7 @@ from motion_env.motion.skeleton import (
     CHAINS,
     FACE_JOINTS,
     FOOT_JOINTS,
+    LEGS,
     MIRROR_INDEX,
     NUM_JOINTS,
     PARENTS,
@@ -340,15 +341,13 @@ def fit_bone_lengths(
     return _feet_at_height(_rebuild(x, joints[..., 0, :], lengths), joints)
 
 
-# The legs as (hip, knee, ankle, toe), left then right (CHAINS' leg chains without the pelvis).
-_LEGS = (CHAINS[1][1:], CHAINS[0][1:])
-_HIPS, _LEG_JOINTS = [leg[0] for leg in _LEGS], np.array(_LEGS)
+_HIPS, _LEG_JOINTS = [leg[0] for leg in LEGS], np.array(LEGS)
 
 
 def _torso_up(joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(hips' centre (..., 3), unit torso axis (..., 3)): from the hips' centre to spine1, made
     square to the line through the hips."""
-    left, right = joints[..., _LEGS[0][0], :], joints[..., _LEGS[1][0], :]
+    left, right = joints[..., _HIPS[0], :], joints[..., _HIPS[1], :]
     centre = 0.5 * (left + right)
     across = left - right
     across = across / np.maximum(vector_norm(across, keepdims=True), 1e-9)

@@ -28,6 +28,8 @@ CHAINS: tuple[tuple[int, ...], ...] = (
     (9, 14, 17, 19, 21),
     (9, 13, 16, 18, 20),
 )
+# The legs as (hip, knee, ankle, toe), left then right (the leg chains without the pelvis).
+LEGS: tuple[tuple[int, int, int, int], ...] = ((1, 4, 7, 10), (2, 5, 8, 11))
 
 # Left/right pairs; MIRROR_INDEX maps each joint to its mirror image.
 LEFT_RIGHT_PAIRS: tuple[tuple[int, int], ...] = (

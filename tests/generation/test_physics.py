@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from motion_env.generation.feet import LEGS, two_bone_ik
+from motion_env.generation.feet import two_bone_ik
 from motion_env.generation.ground import (
     FLAT_ANKLE_HEIGHT,
     SWING_CLEARANCE,
@@ -23,7 +23,7 @@ from motion_env.generation.physics import (
     plan_heights,
 )
 from motion_env.motion.mass import centre_of_mass
-from motion_env.motion.skeleton import BONE_LENGTHS, FOOT_CONTACT, FPS, PARENTS, RAW_OFFSETS
+from motion_env.motion.skeleton import BONE_LENGTHS, FOOT_CONTACT, FPS, LEGS, PARENTS, RAW_OFFSETS
 
 DT2 = 1.0 / FPS**2
 

@@ -9,9 +9,10 @@ import pytest
 
 from motion_env.evaluation.metrics import foot_skating_ratio
 from motion_env.generation import recompose as rc
-from motion_env.generation.feet import LEGS, FootPinner, two_bone_ik
+from motion_env.generation.feet import FootPinner, two_bone_ik
 from motion_env.motion.features import features_to_joints
 from motion_env.motion.kinematics import heading_from_joints
+from motion_env.motion.skeleton import LEGS
 from motion_env.motion.trajectory import root_path_from_joints, waypoint_errors, wrap_angle
 
 

@@ -322,7 +322,7 @@ def test_held_pelvis_shape_is_one_rigid_pelvis_with_the_legs_and_feet_kept() -> 
     slide = np.linspace(-0.03, 0.03, len(clip))
     _, up = kinematics._torso_up(clip.astype(np.float64))
     sliding = clip.copy()
-    for leg in kinematics._LEGS:
+    for leg in S.LEGS:
         sliding[:, list(leg)] += (slide[:, None] * up)[:, None].astype(np.float32)
     shape = M.pelvis_shape(sliding)
     assert shape.max() - shape.min() > 0.02
