@@ -396,9 +396,9 @@ class Pipeline:
             raw = self.clip_paths(text_emb, replace(req, routes=steer), snap=False)
         # Only a path that passes waypoints stutters; without one the clip's path stays the
         # controller's own, as the stream's is.
-        raw = [p if r is None else smooth_path(p, PATH_SMOOTHING) for p, r in zip(raw, steer, strict=True)]
+        smooth = [p if r is None else smooth_path(p, PATH_SMOOTHING) for p, r in zip(raw, steer, strict=True)]
         routes = [plan_route(r, s[:2]) for r, s in zip(req.routes, req.starts, strict=True)]
-        return routes, np.stack([snap_route(p, r) for p, r in zip(raw, routes, strict=True)])
+        return routes, np.stack([snap_route(p, r, q) for p, r, q in zip(smooth, routes, raw, strict=True)])
 
     # ------------------------------------------------------------------ 3. tokens
     def sample_tokens(

@@ -278,7 +278,13 @@ def snap_to_waypoints(
 # ----------------------------------------------------------------------------------------------
 
 
-def route_anchors(path: np.ndarray, route: np.ndarray, first: int = 0, open_end: bool = False) -> np.ndarray:
+def route_anchors(
+    path: np.ndarray,
+    route: np.ndarray,
+    first: int = 0,
+    open_end: bool = False,
+    steered: np.ndarray | None = None,
+) -> np.ndarray:
     """The waypoints a root path is snapped to, each timed at the frame where the path should pass it.
 
     Args:
@@ -287,6 +293,10 @@ def route_anchors(path: np.ndarray, route: np.ndarray, first: int = 0, open_end:
         first: episode frame of the path's frame 0 (which stays where it is).
         open_end: the path goes on after its last frame (streaming look-ahead): an untimed
             waypoint closest at the last frame is still being approached and is not snapped.
+        steered: (T, 3) the controller's own path that `path` was smoothed from, where untimed
+            waypoints are looked for (default `path`): the controller steers through them, but
+            smoothing a sharp turn (a waypoint behind the character) cuts its corner by more
+            than SNAP_RADIUS, which would leave the waypoint unreached.
 
     Returns:
         (M, 3) float32 x, z and the frame (of `path`) of each anchor, frames increasing: timed
@@ -295,11 +305,12 @@ def route_anchors(path: np.ndarray, route: np.ndarray, first: int = 0, open_end:
         does not reach ends the list (the ones after it are not reached in order either).
     """
     last = len(path) - 1
+    steered = path if steered is None else steered
     anchors: list[tuple[float, float, float]] = []
     after = 0
     for x, z, t in route:
         if np.isnan(t):
-            dist = np.linalg.norm(path[after:, :2] - (x, z), axis=1)
+            dist = np.linalg.norm(steered[after:, :2] - (x, z), axis=1)
             k = after + int(np.argmin(dist))
             if dist[k - after] > SNAP_RADIUS or (open_end and k == last):
                 break
@@ -329,11 +340,12 @@ def smooth_path(path: np.ndarray, sigma: float) -> np.ndarray:
     return out[..., pad:-pad, :].astype(path.dtype)
 
 
-def snap_route(path: np.ndarray, route: np.ndarray | None) -> np.ndarray:
-    """A whole clip's root path bent through the route's anchors (:func:`snap_to_waypoints`)."""
+def snap_route(path: np.ndarray, route: np.ndarray | None, steered: np.ndarray | None = None) -> np.ndarray:
+    """A whole clip's root path bent through the route's anchors (:func:`snap_to_waypoints`);
+    `steered`: the controller's path before smoothing (:func:`route_anchors`)."""
     if route is None:
         return path
-    anchors = route_anchors(path, route)
+    anchors = route_anchors(path, route, steered=steered)
     return path if len(anchors) == 0 else snap_to_waypoints(path, anchors, keep_start=True)
 
 

@@ -122,13 +122,15 @@ class StreamPaths:
             )
             raw[sel, :c] = smooth_path(whole, PATH_SMOOTHING)[:, b:]
 
-    def _snap_ahead(self, i: int, anchor: int, path: np.ndarray, queue: int) -> np.ndarray:
+    def _snap_ahead(
+        self, i: int, anchor: int, path: np.ndarray, queue: int, steered: np.ndarray
+    ) -> np.ndarray:
         """Character i's root path over frames anchor..anchor + len(path) - 1, continuing its
-        committed path: `path` (float64), the controller's shifted so that the anchor frame sits
-        where it was emitted, bent (:func:`~motion_env.generation.recompose.spread_residuals`)
+        committed path: `path` (float64), the controller's smoothed and shifted so that the anchor
+        frame sits where it was emitted, bent (:func:`~motion_env.generation.recompose.spread_residuals`)
         through the waypoints ahead (from route index `queue` on) that fall inside the window:
-        timed ones after the anchor, untimed ones that the path passes within SNAP_RADIUS
-        (:func:`~motion_env.generation.recompose.route_anchors`).
+        timed ones after the anchor, untimed ones that the controller's own path (`steered`,
+        shifted alike) passes within SNAP_RADIUS (:func:`~motion_env.generation.recompose.route_anchors`).
         """
         route = self._routes[i]
         last = anchor + len(path) - 1
@@ -137,7 +139,7 @@ class StreamPaths:
             return path.astype(np.float32)
         anchors = np.zeros((0, 3), np.float32)
         if route is not None:
-            anchors = route_anchors(path, route[queue:], first=anchor, open_end=True)
+            anchors = route_anchors(path, route[queue:], first=anchor, open_end=True, steered=steered)
         if pelvis is not None and len(pelvis):  # pelvis targets bend the path like timed waypoints
             anchors = anchors[~np.isin(anchors[:, 2], pelvis[:, 2])]
             anchors = np.concatenate([anchors, pelvis])
@@ -162,12 +164,17 @@ class StreamPaths:
         count = first + self._horizon - anchor + 1  # frames anchor..first + horizon
         slots = (anchor[:, None] + np.arange(int(count.max()))) % self._ring
         raw = self._states.roots[rows[:, None], slots].astype(np.float64)  # (N, L, 3)
+        steered = raw.copy()  # where untimed waypoints are looked for (route_anchors)
         self._smooth(rows, anchor, count, raw)
+        committed = self._snapped[rows, anchor % self._ring, :2]
         paths = raw.copy()
-        paths[..., :2] += (self._snapped[rows, anchor % self._ring, :2] - raw[:, 0, :2])[:, None]
+        paths[..., :2] += (committed - raw[:, 0, :2])[:, None]
+        steered[..., :2] += (committed - steered[:, 0, :2])[:, None]
         rows_t = torch.as_tensor(rows, device=self._states.queue.device)
         queue = self._states.queue[rows_t, torch.as_tensor(slots[:, 0], device=rows_t.device)].tolist()
         return [
-            self._snap_ahead(int(i), int(anchor[n]), paths[n, : count[n]], queue[n])[first[n] - anchor[n] :]
+            self._snap_ahead(int(i), int(anchor[n]), paths[n, : count[n]], queue[n], steered[n, : count[n]])[
+                first[n] - anchor[n] :
+            ]
             for n, i in enumerate(rows)
         ]

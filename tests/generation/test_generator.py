@@ -258,6 +258,23 @@ def test_shipped_model_follows_a_route(pretrained_generator: MotionGenerator) ->
     assert np.percentile(m.joints[:, [7, 8, 10, 11], 1].min(axis=1), 50) < 0.1
 
 
+def test_the_stream_passes_untimed_waypoints_behind_the_character(
+    pretrained_generator: MotionGenerator,
+) -> None:
+    # A walker 3 m out is given a waypoint behind and to its right, then one ahead: it turns
+    # back through the first (the studio's browser test did this, and the smoothed look-ahead
+    # cut the turn 0.53 m short of it, so the route never counted it reached).
+    stream = pretrained_generator.stream(["a person walks forward"], seed=0)
+    for _ in range(60):
+        stream.step()
+    stream.set_text("a person jogs", index=0)
+    route = np.array([[1.5, 2.5, np.nan], [-1.0, 5.5, np.nan]], np.float32)
+    stream.set_waypoints(route, index=0)
+    pelvis = np.stack([np.asarray(stream.step())[0, 0, [0, 2]] for _ in range(140)])
+    closest = [np.linalg.norm(pelvis - w[:2], axis=1).min() for w in route]
+    np.testing.assert_allclose(closest, 0.0, atol=0.02)
+
+
 def _standing(frames: int, step: float) -> np.ndarray:
     """A rest-pose body that glides along +X by `step` metres per frame, feet included."""
     from motion_env.motion.kinematics import bone_offsets, forward_kinematics

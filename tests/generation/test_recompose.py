@@ -102,6 +102,23 @@ def test_snap_hits_timed_and_untimed_waypoints_exactly() -> None:
     np.testing.assert_array_equal(rc.snap_to_waypoints(path, wp), snapped)
 
 
+def test_a_turned_back_waypoint_is_found_on_the_path_before_smoothing() -> None:
+    # Out 3 m along z and straight back: smoothing cuts the turn's corner, so the smoothed path
+    # stops short of the waypoint at the turn (by more than SNAP_RADIUS at this speed); the
+    # controller's own path, which steered through it, still finds it.
+    t = np.arange(60, dtype=np.float64)
+    z = np.where(t < 30, t * 0.1, 6.0 - t * 0.1)
+    steered = np.stack([np.zeros_like(t), z, np.zeros_like(t)], 1).astype(np.float32)
+    smoothed = rc.smooth_path(steered, 12.0)
+    route = np.array([[0.0, 3.0, np.nan]], np.float32)
+    assert np.linalg.norm(smoothed[:, :2] - route[0, :2], axis=1).min() > rc.SNAP_RADIUS
+    assert len(rc.route_anchors(smoothed, route)) == 0
+    anchors = rc.route_anchors(smoothed, route, steered=steered)
+    np.testing.assert_allclose(anchors, [[0.0, 3.0, 30.0]])
+    snapped = rc.snap_route(smoothed, route, steered)
+    np.testing.assert_allclose(snapped[30, :2], [0.0, 3.0], atol=1e-5)
+
+
 def test_snap_turns_the_heading_with_the_new_direction() -> None:
     n = 80
     straight = np.stack([np.zeros(n), np.arange(n) * 0.06, np.zeros(n)], 1)  # forward along +Z
