@@ -38,6 +38,12 @@ __all__ = ["MAX_LAG", "Studio"]
 MAX_LAG = 0.25  # seconds behind the clock before it gives up catching up
 _NUMBERS_EVERY = 5  # frames between updates of the live numbers (4 a second)
 _FOLLOW_EVERY = 2  # frames between camera moves when the camera follows
+# viser 1.1 sets an asyncio.Event of a tab's message buffer from the thread that sends (our
+# player thread) while its event loop may be changing the event's waiters (a tab connecting or
+# closing): the set then fails with "deque mutated during iteration" (seen once in CI, as a tab
+# closed). A frame whose drawing meets that race is skipped, not the player thread ended: the
+# next frame sends the whole scene again.
+_VISER_RACE = "during iteration"
 
 
 def _floor_of_drag(event: viser.SceneNodeDragEvent) -> np.ndarray | None:
@@ -88,6 +94,7 @@ class Studio:
         self.server: viser.ViserServer | None = None
         self.recording_from: int | None = None
         self.frames_played = 0
+        self.skipped_draws = 0  # frames not drawn: viser's event race (_VISER_RACE)
         self.play_seconds = 0.0  # wall time spent playing
         self._playing = threading.Event()
         self._playing.set()
@@ -212,8 +219,17 @@ class Studio:
                 due, self._last_slip = done, done
 
     def _frame(self) -> None:
-        """One tick: the next frame of everyone, drawn; the numbers and notices now and then."""
+        """One tick: the next frame of everyone, drawn (:meth:`_draw`)."""
         snap = self.session.tick()
+        try:
+            self._draw(snap)
+        except RuntimeError as exc:
+            if _VISER_RACE not in str(exc):
+                raise
+            self.skipped_draws += 1
+
+    def _draw(self, snap: Any) -> None:
+        """The frame `snap` on every tab; the numbers and notices now and then."""
         self.scene.draw(snap)
         if snap.frame % _NUMBERS_EVERY == 0:
             behind = time.perf_counter() - self._last_slip < 2.0

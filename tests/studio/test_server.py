@@ -124,3 +124,34 @@ def test_the_camera_follows_the_character_by_default(generator) -> None:
         assert studio.panel.follow.value  # on for a new user
     finally:
         studio.stop()
+
+
+def test_viser_s_event_race_skips_a_drawing_not_the_player(generator) -> None:
+    """viser sets an asyncio event from the player's thread; when its loop changes the event's
+    waiters at that moment (a tab closing) the set fails. The player skips that drawing and plays
+    on; any other error still surfaces."""
+    from motion_env.studio.server import Studio
+
+    studio = Studio(generator, ["a person walks forward"], port=0)
+    studio.start()
+    try:
+        draw, calls = studio.scene.draw, []
+
+        def racing(snap) -> None:
+            calls.append(snap.frame)
+            if len(calls) == 1:
+                raise RuntimeError("deque mutated during iteration")
+            draw(snap)
+
+        studio.scene.draw = racing
+        deadline = time.monotonic() + 20.0
+        while len(calls) < 10 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert len(calls) >= 10 and studio.skipped_draws == 1  # the player went on
+
+        studio.set_playing(False)
+        studio.scene.draw = lambda snap: (_ for _ in ()).throw(RuntimeError("a bug of ours"))
+        with pytest.raises(RuntimeError, match="a bug of ours"):
+            studio._frame()
+    finally:
+        studio.stop()
