@@ -77,6 +77,11 @@ def _add_natural_options(p: argparse.ArgumentParser) -> None:
         help="generator weights directory (default: the shipped model)",
     )  # fmt: skip
     p.add_argument("--classifier", default=None, help=_CLASSIFIER_HELP)
+    p.add_argument(
+        "--actions", default=None, type=lambda text: tuple(a.strip() for a in text.split(",")),
+        help="only these actions, comma-separated (e.g. run,walk): their rows are those of a run "
+        "over every action; default every action with 3 takes or more",
+    )  # fmt: skip
     add_caption_reader(p)
 
 
@@ -113,7 +118,10 @@ def add_eval(sub: argparse._SubParsersAction) -> None:
 
 def _echo(args: argparse.Namespace, command: str, flags: tuple[str, ...]) -> str:
     """The command line that reproduces the results (recorded in the JSON)."""
-    given = (f"--{k.replace('_', '-')} {getattr(args, k)}" for k in flags if getattr(args, k) is not None)
+    values = {k: getattr(args, k) for k in flags if getattr(args, k) is not None}
+    given = (
+        f"--{k.replace('_', '-')} {','.join(v) if isinstance(v, tuple) else v}" for k, v in values.items()
+    )
     return " ".join([f"motion-env eval {command}", *given])
 
 
@@ -186,11 +194,14 @@ def run_eval_natural(args: argparse.Namespace) -> int:
     from motion_env.evaluation.naturalness import NaturalnessSettings, evaluate_naturalness
 
     settings = NaturalnessSettings(
-        args.data, args.split, args.per_action, args.seed, args.stage, classifier=args.classifier
-    )
+        args.data, args.split, args.per_action, args.seed, args.stage, classifier=args.classifier,
+        actions=args.actions,
+    )  # fmt: skip
     gen = _generator(args)
     result = evaluate_naturalness(gen, settings)
     print(result.format())
     if args.json:
-        _write_result(args, result, ("data", "split", "per_action", "seed", "stage", "model", "classifier"))
+        _write_result(
+            args, result, ("data", "split", "per_action", "seed", "stage", "model", "classifier", "actions")
+        )
     return 0

@@ -43,7 +43,7 @@ themselves scored a distance of 144 against all real takes (test split, 2026-11-
 from __future__ import annotations
 
 import time
-from collections import defaultdict
+from collections import Counter, defaultdict
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -93,6 +93,9 @@ class NaturalnessSettings:
             (the real takes through the VQ-VAE).
         min_takes: an action is reported when the split has at least this many takes of it.
         classifier: the classifier checkpoint whose features the distances use (None: shipped).
+        actions: only these actions (None: every action with min_takes takes); each one's row is
+            the one a run over every action gives (the same takes, seed and real halves), the
+            "all" row is over these.
     """
 
     data: str | Path
@@ -102,11 +105,18 @@ class NaturalnessSettings:
     stage: str = "generated"
     min_takes: int = 3
     classifier: str | Path | None = None
+    actions: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
         check_settings(self, per_action=2, seed=0, min_takes=3)
         if self.stage not in STAGES:
             raise ValueError(f"NaturalnessSettings.stage must be one of {STAGES}, got {self.stage!r}")
+        if self.actions is not None:
+            self.actions = tuple(self.actions)
+            if not self.actions or not all(isinstance(a, str) and a.strip() for a in self.actions):
+                raise ValueError(
+                    f"NaturalnessSettings.actions must be None or action names, got {self.actions!r}"
+                )
 
 
 @dataclass
@@ -224,6 +234,7 @@ class _Clips:
     jerk: list[np.ndarray] = field(default_factory=list)
     skating: list[float] = field(default_factory=list)
     plausible: list[bool] = field(default_factory=list)
+    failed: list[list[str]] = field(default_factory=list)  # the replay's failed checks per judged clip
     joints: list[np.ndarray] = field(default_factory=list)
 
     def add(self, joints: np.ndarray) -> None:
@@ -233,13 +244,14 @@ class _Clips:
         self.accel.append(joint_acceleration(joints))
         self.jerk.append(joint_jerk(joints))
         self.skating.append(foot_skating_ratio(joints))
-        verdict = evaluate(Motion(joints=joints, fps=FPS))["plausible"]
-        if verdict is not None:
-            self.plausible.append(bool(verdict))
+        replay = evaluate(Motion(joints=joints, fps=FPS))
+        if replay["plausible"] is not None:
+            self.plausible.append(bool(replay["plausible"]))
+            self.failed.append(list(replay["failed"]))
         self.joints.append(joints)
 
     def extend(self, other: _Clips) -> None:
-        for name in ("accel", "jerk", "skating", "plausible", "joints"):
+        for name in ("accel", "jerk", "skating", "plausible", "failed", "joints"):
             getattr(self, name).extend(getattr(other, name))
 
 
@@ -251,6 +263,7 @@ class NaturalnessRow:
     clips: int  # clips made and measured
     plausible: float | None  # share judged plausible by the replay
     real_plausible: float | None
+    replay_failures: dict[str, int]  # replay check -> clips that failed it (a clip may fail several)
     accel_p99: float  # m/s^2
     real_accel_p99: float
     accel_ratio: float
@@ -318,6 +331,7 @@ def _row(
         clips=len(made.joints),
         plausible=_share(made.plausible),
         real_plausible=_share(real.plausible),
+        replay_failures=dict(sorted(Counter(c for checks in made.failed for c in checks).items())),
         accel_p99=accel,
         real_accel_p99=real_accel,
         accel_ratio=accel / real_accel,
@@ -374,6 +388,13 @@ class NaturalnessResult:
                 f"{_fmt(r.skating_ratio, 8, 2)}{_fmt(r.fd, 8, 1)}{_fmt(r.fd_real_vs_real, 10, 1)}"
                 f"{_fmt(r.diversity, 7, 2)}{_fmt(r.real_diversity, 7, 2)}"
             )
+        failing = [
+            f"{name} ({', '.join(f'{c} {n}' for c, n in r.replay_failures.items())})"
+            for name, r in self.actions.items()
+            if r.replay_failures
+        ]
+        if failing:
+            lines.append("replay checks failed, clips per check: " + "; ".join(failing))
         return "\n".join(lines)
 
 
@@ -431,11 +452,19 @@ def evaluate_naturalness(gen: Any, settings: NaturalnessSettings, progress: bool
             f"{settings.data}: no action has {settings.min_takes} takes of at least 1 s "
             f"in split {settings.split!r}"
         )
+    unknown = sorted(set(settings.actions or ()) - set(takes))
+    if unknown:
+        raise ValueError(
+            f"actions {unknown}: no such action with {settings.min_takes} takes of at least 1 s in "
+            f"split {settings.split!r} (there are: {', '.join(takes)})"
+        )
     rng = np.random.default_rng(settings.seed)
     chosen = {
         a: [ts[i] for i in sorted(rng.choice(len(ts), min(settings.per_action, len(ts)), replace=False))]
         for a, ts in takes.items()
     }
+    if settings.actions is not None:  # the choice above is made for every action all the same
+        chosen = {a: c for a, c in chosen.items() if a in settings.actions}
     bar = tqdm(
         total=sum(map(len, chosen.values())), desc=f"naturalness ({settings.stage})", disable=not progress
     )
@@ -443,6 +472,9 @@ def evaluate_naturalness(gen: Any, settings: NaturalnessSettings, progress: bool
     pooled_made, pooled_real, thresholds = _Clips(), _Clips(), []
     pooled_emb: list[dict[str, np.ndarray]] = []
     for action, ts in takes.items():
+        if action not in chosen:
+            rng.permutation(len(ts))  # its real halves (_embeddings): the others' stay as in a full run
+            continue
         made, real = _Clips(), _Clips()
         for take in chosen[action]:
             bar.set_postfix_str(action, refresh=False)
@@ -463,7 +495,11 @@ def evaluate_naturalness(gen: Any, settings: NaturalnessSettings, progress: bool
         pooled_emb.append(emb)
     bar.close()
     overall = _row(
-        pooled_made, pooled_real, thresholds, sum(map(len, takes.values())), _pooled_embeddings(pooled_emb)
+        pooled_made,
+        pooled_real,
+        thresholds,
+        sum(len(takes[a]) for a in chosen),
+        _pooled_embeddings(pooled_emb),
     )
     return NaturalnessResult(
         stage=settings.stage,

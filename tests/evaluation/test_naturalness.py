@@ -155,6 +155,8 @@ def test_the_real_takes_themselves_score_near_zero_whatever_the_mix() -> None:
         ({"seed": -1}, "NaturalnessSettings.seed"),
         ({"min_takes": 2}, "NaturalnessSettings.min_takes"),
         ({"split": " "}, "NaturalnessSettings.split"),
+        ({"actions": ()}, "NaturalnessSettings.actions"),
+        ({"actions": ("walk", " ")}, "NaturalnessSettings.actions"),
     ],
 )
 def test_settings_name_the_bad_field(changes: dict, message: str) -> None:
@@ -182,6 +184,11 @@ def test_report_on_the_random_model(tiny_generator, natural_dataset, classifier_
     assert row.fd is not None and row.fd >= 0 and row.diversity is not None and row.real_diversity > 0
     assert row.fd_real_vs_real is None  # halves of 1 and 2 takes: no covariance for one
     assert row.plausible is None or 0 <= row.plausible <= 1
+    assert (
+        sum(row.replay_failures.values()) >= (1 - row.plausible) * row.clips
+        if row.plausible is not None
+        else True
+    )
     data = json.loads(json.dumps(result.to_dict()))
     assert data["stage"] == stage and data["actions"]["walk"]["clips"] == 2
     text = result.format()
@@ -220,3 +227,43 @@ def test_cli_writes_the_report(tiny_generator, natural_dataset, classifier_file,
     assert "exists" in capsys.readouterr().err
     assert main([*argv[:-2], "--per-action", "1"]) == 2
     assert "per_action" in capsys.readouterr().err
+    assert main([*argv[:-2], "--actions", "walk,run"]) == 2  # no run takes in this split
+    assert "actions ['run']" in capsys.readouterr().err
+
+
+def test_a_subset_of_actions_gives_their_rows_of_a_full_run(
+    tmp_path, write_labelled_dataset, tiny_generator, classifier_file
+) -> None:
+    rng = np.random.default_rng(1)
+    takes = [
+        (
+            f"dataset-1_{action}_normal_{k:03d}",
+            "test",
+            action,
+            "normal",
+            _walk(rng, FRAMES + 1, SPEEDS[action]),
+        )
+        for action in ("wave-right-hand", "walk")
+        for k in range(5)
+    ]
+    data = write_labelled_dataset(tmp_path / "two", takes)
+    settings = NaturalnessSettings(data=data, per_action=2, stage="vqvae", classifier=classifier_file)
+    full = evaluate_naturalness(tiny_generator, settings, progress=False)
+    assert list(full.actions) == ["walk", "wave-right-hand"]
+    subset = evaluate_naturalness(
+        tiny_generator,
+        NaturalnessSettings(**{**vars(settings), "actions": ("wave-right-hand",)}),
+        progress=False,
+    )
+    assert list(subset.actions) == list(subset.takes) == ["wave-right-hand"]
+    row = subset.actions["wave-right-hand"]
+    assert (
+        row.fd_real_vs_real is not None and row == full.actions["wave-right-hand"]
+    )  # same takes, halves, numbers
+    assert subset.overall.clips == 2 and subset.overall.takes == 5
+    with pytest.raises(ValueError, match=r"actions \['run'\].*there are: walk, wave-right-hand"):
+        evaluate_naturalness(
+            tiny_generator,
+            NaturalnessSettings(**{**vars(settings), "actions": ("run", "walk")}),
+            progress=False,
+        )
