@@ -19,6 +19,7 @@ from motion_env.generation.physics import (
     STANCE_ACCELERATION,
     PhysicsFilter,
     _cap_flights,
+    _lifting_off,
     apply_physics,
     plan_heights,
 )
@@ -111,6 +112,21 @@ def test_a_jump_falls_freely_between_take_off_and_landing() -> None:
     np.testing.assert_allclose(out[:, 0, [0, 2]], joints[:, 0, [0, 2]], atol=1e-6)  # only heights change
     np.testing.assert_allclose(_bones(out), _bones(joints), atol=1e-5)
     np.testing.assert_allclose(sole_heights(out[:12].astype(np.float64)), 0.0, atol=2e-3)
+
+
+def test_a_contacts_last_frame_is_not_stood_on() -> None:
+    planted = np.array([[1, 1, 1, 0, 1, 0, 0, 1]], bool)[..., None]
+    expected = np.array([[1, 1, 0, 0, 0, 0, 0, 1]], bool)[..., None]  # the call's last frame: unseen next
+    np.testing.assert_array_equal(_lifting_off(planted), expected)
+
+    # A toe-off: the left foot rises 2 cm on its last flagged frame, then 5 cm, free.
+    joints, contacts = _standing(30), np.ones((30, 4), np.float32)
+    for f, rise in ((15, 0.02), *((f, 0.05) for f in range(16, 30))):
+        joints[f, [7, 10], 1] += rise
+    contacts[16:, :2] = 0.0
+    soles = sole_heights(apply_physics(joints, contacts).astype(np.float64))
+    np.testing.assert_allclose(soles[:15], 0.0, atol=2e-3)  # stood on the floor
+    assert soles[15, 0] == pytest.approx(0.02, abs=2e-3)  # lifting off, not pushed down for a frame
 
 
 def test_plan_heights_keeps_what_obeys_gravity() -> None:
