@@ -12,7 +12,9 @@ quiet-machine equivalent when ``../shared/tools/calib.py`` is there), and the sa
 for the clips whose targets the path without targets already brings within reach
 (:func:`~motion_env.generation.root_bending.within_reach`: the same sampled motion, refined) and
 for those whose path is steered to the targets (a motion sampled anew on another path: the ratio
-then compares two different motions).
+then compares two different motions). The steered ones are also compared with the same seed on
+the route the targets imply (:func:`~motion_env.generation.root_bending.implied_route`) without
+targets, the clip the refinement starts from: what the refinement itself adds.
 
 Then walks under a beam (``HeightLimit`` on the head, 1.3 m, 60 frames, as
 ``motion-env eval control``'s objectives with a lower beam): foot skating (the share of frames
@@ -41,7 +43,7 @@ import motion_env
 from motion_env.evaluation.captions import WALK_CAPTIONS
 from motion_env.evaluation.control import control_cases
 from motion_env.evaluation.metrics import foot_skating_ratio
-from motion_env.generation.root_bending import within_reach
+from motion_env.generation.root_bending import implied_route, within_reach
 from motion_env.motion.skeleton import FPS, JOINT_INDEX
 from motion_env.objectives import HeightLimit
 
@@ -129,7 +131,7 @@ def main() -> None:
     gen.refine_config = dataclasses.replace(gen.refine_config, **changes)
     calib = _calibration()
     rng = np.random.default_rng(0)
-    ratios, errors, reach, seconds, quiet, skating = [], [], [], [], [], []
+    ratios, errors, reach, seconds, quiet, skating, own = [], [], [], [], [], [], []
     for take in control_cases(args.data, args.takes, split=args.split):
         t_len = len(take.joints)
         free = gen.generate(take.text, num_frames=t_len, seed=0, start=take.start).joints
@@ -151,10 +153,17 @@ def main() -> None:
             ratios.append(largest_acceleration(made.joints) / largest_acceleration(free))
             skating.append((foot_skating_ratio(made.joints), foot_skating_ratio(free)))
             reach.append(within_reach(targets, path))
+            if not reach[-1]:  # the same seed on the route the targets imply, without them
+                routed = gen.generate(
+                    take.text, implied_route(targets), t_len, seed=0, start=take.start
+                ).joints
+                own.append(largest_acceleration(made.joints) / largest_acceleration(routed))
             if args.per_clip:
+                how = "within reach" if reach[-1] else f"steered; {own[-1]:.2f} against the route alone"
                 print(
                     f"  {take.name[:44]:<44} {'+'.join(names) if len(names) < 6 else 'all six':<14} "
-                    f"x{count:<5} ratio {ratios[-1]:.2f} ({'within reach' if reach[-1] else 'steered'}), "
+                    f"x{count:<5} ratio {ratios[-1]:.2f} "
+                    f"({how}), "
                     f"error {errors[-1] * 100:.2f} cm"
                 )
     r, near = np.array(ratios), np.array(reach)
@@ -167,7 +176,10 @@ def main() -> None:
         f"{speed}\n  foot skating {np.mean([s for s, _ in skating]):.3f}, the same seeds without targets "
         f"{np.mean([f for _, f in skating]):.3f}\n  targets within reach of the path without them "
         f"(same motion, refined): "
-        f"{_ratios(r[near])}\n  path steered to the targets (a motion sampled anew): {_ratios(r[~near])}"
+        f"{_ratios(r[near])}\n  path steered to the targets (a motion sampled anew): {_ratios(r[~near])}\n"
+        f"    the same, against the same seed on the route the targets imply, without them (what the "
+        f"refinement adds): {_ratios(np.array(own))}\n  all clips, each against the clip the refinement "
+        f"starts from (without targets, on the same route): {_ratios(np.concatenate([r[near], own]))}"
     )
     if args.beams > 0:
         skate, free_skate, worst, lowest = beam_walks(gen, args.beams)

@@ -31,7 +31,7 @@ from motion_env.data.dataset import read_index
 from motion_env.evaluation.captions import WALK_CAPTIONS, WAVE_RIGHT, heldout_caption
 from motion_env.evaluation.metrics import MISS, check_settings, foot_skating_ratio
 from motion_env.motion.kinematics import bone_lengths
-from motion_env.motion.skeleton import BONE_LENGTHS, JOINT_INDEX
+from motion_env.motion.skeleton import BONE_LENGTHS, FOOT_JOINTS, JOINT_INDEX
 from motion_env.motion.trajectory import root_path_from_joints
 
 __all__ = [
@@ -44,12 +44,17 @@ __all__ = [
     "evaluate_control",
     "evaluate_objectives",
     "objective_cases",
+    "off_the_floor",
     "run_control",
 ]
 
 CONTROL_JOINTS = ("pelvis", "left_foot", "right_foot", "head", "left_wrist", "right_wrist")
 DENSITIES = ("1 frame", "5 frames", "25 %", "all frames")
 MAX_FRAMES = 200  # takes are cut to 10 s: the speed target is per 200-frame clip
+OFF_FLOOR = (0.3, 10)
+"""A take whose lowest foot joint is over 0.3 m above the floor for at least 10 frames (0.5 s) is
+off the floor (climbing, hanging from a bar): its targets ask for a body held up by something the
+generator does not have, so the overall error is also given without such takes."""
 
 
 @dataclass
@@ -94,6 +99,18 @@ def settings() -> list[tuple[str, tuple[str, ...], str]]:
     """(name, joints, density) of every setting: each joint at each density, then all six at 2 keyframes."""
     out = [(f"{j} / {d}", (j,), d) for d in DENSITIES for j in CONTROL_JOINTS]
     return out + [("all six / 2 keyframes", CONTROL_JOINTS, "2 keyframes")]
+
+
+def off_the_floor(joints: np.ndarray) -> bool:
+    """Whether a take's body is held up off the floor (:data:`OFF_FLOOR`): (T, 22, 3) joints."""
+    height, frames = OFF_FLOOR
+    lowest = np.asarray(joints)[:, list(FOOT_JOINTS), 1].min(axis=1)
+    run = 0
+    for up in lowest > height:
+        run = run + 1 if up else 0
+        if run >= frames:
+            return True
+    return False
 
 
 def _max_jump(joints: np.ndarray) -> float:
@@ -158,8 +175,11 @@ def evaluate_control(gen: Any, takes: list[Take], seed: int = 0, log: Any = None
     results["no targets"] = baseline.summary()
     if log is not None:
         log(_fmt_row("no targets", results["no targets"]))
+    on_floor = [not off_the_floor(take.joints) for take in takes]
+    floor_rows = []
     for name, joint_names, density in settings():
         row = _Row()
+        floor_rows.append(row)
         for take in takes:
             t_len = len(take.joints)
             targets = np.full((t_len, 22, 3), np.nan, np.float32)
@@ -192,7 +212,16 @@ def evaluate_control(gen: Any, takes: list[Take], seed: int = 0, log: Any = None
         "max_skating_ratio": float(max(r["skating_ratio"] for r in results["settings"].values())),
         "max_bone_change_pct": float(max(r["max_bone_change_pct"] for r in results["settings"].values())),
         "max_seconds_per_clip": float(max(r["max_seconds_per_clip"] for r in results["settings"].values())),
+        "takes_off_the_floor": [t.name for t, floor in zip(takes, on_floor) if not floor],
     }
+    # The same errors without the takes off the floor: per setting, then over all their targets.
+    kept = [[e for e, floor in zip(row.errors, on_floor) if floor] for row in floor_rows]
+    per_setting = [np.concatenate(e) if e else np.zeros(0) for e in kept]
+    flat = np.concatenate(per_setting) if per_setting else np.zeros(0)
+    results["overall"]["on_the_floor_mean_error_cm"] = float(flat.mean() * 100) if flat.size else 0.0
+    results["overall"]["on_the_floor_worst_setting_cm"] = float(
+        max((e.mean() * 100 for e in per_setting if e.size), default=0.0)
+    )
     return results
 
 
@@ -427,6 +456,13 @@ class ControlResult:
             f"bones within {o['max_bone_change_pct']:.2f} %; "
             f"up to {o['max_seconds_per_clip']:.2f} s per clip",
         ]
+        if o.get("takes_off_the_floor"):
+            lines.append(
+                f"without the {len(o['takes_off_the_floor'])} of {len(self.takes)} takes off the floor "
+                f"({', '.join(o['takes_off_the_floor'])}: held up by what the generator does not have, "
+                f"their targets above any reach): mean error {o['on_the_floor_mean_error_cm']:.2f} cm, "
+                f"worst setting {o['on_the_floor_worst_setting_cm']:.2f} cm"
+            )
         if self.objectives is not None:
             lines += ["", OBJECTIVES_HEAD]
             lines += [_fmt_objective_row(kind, r) for kind, r in self.objectives.items()]

@@ -6,9 +6,12 @@ from __future__ import annotations
 import argparse
 import json
 
+import numpy as np
+
 from motion_env.cli.evaluate import _write_result
-from motion_env.evaluation.control import CONTROL_HEAD, ControlResult
+from motion_env.evaluation.control import CONTROL_HEAD, ControlResult, off_the_floor
 from motion_env.evaluation.recognition import RecognitionResult
+from motion_env.motion.skeleton import FOOT_JOINTS
 
 ROW_KEYS = (
     "mean_error_cm", "target_miss_rate", "clip_miss_rate", "foot_skating", "real_foot_skating",
@@ -67,6 +70,29 @@ def test_control_tables_list_every_setting_and_the_objectives_when_run() -> None
     assert "1.25" in lines[2] and lines[4].startswith("overall: mean error 2.00 cm")
     assert lines[-1].startswith("keep out") and " - " in lines[-1] and "3.2" in lines[-1]
     assert "objective" not in _control(None).format()
+
+
+def test_control_names_the_takes_off_the_floor_and_the_error_without_them() -> None:
+    result = _control(None)
+    assert "off the floor" not in result.format()
+    result.overall.update(
+        takes_off_the_floor=["b"], on_the_floor_mean_error_cm=0.31, on_the_floor_worst_setting_cm=0.9
+    )
+    line = result.format().splitlines()[5]
+    assert line.startswith("without the 1 of 2 takes off the floor (b:") and "0.31 cm" in line
+
+
+def test_a_climb_is_off_the_floor_a_jump_is_not() -> None:
+    joints = np.zeros((60, 22, 3), np.float32)
+    joints[:, :, 1] = 0.9
+    joints[:, list(FOOT_JOINTS), 1] = 0.05
+    assert not off_the_floor(joints)
+    jump = joints.copy()
+    jump[20:29, :, 1] += 0.5  # 9 frames in the air, the feet 55 cm up
+    assert not off_the_floor(jump)
+    climb = joints.copy()
+    climb[20:30, :, 1] += 0.5  # 10 frames: held up
+    assert off_the_floor(climb)
 
 
 def test_control_json_keeps_the_tables_names() -> None:

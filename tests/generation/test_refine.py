@@ -16,6 +16,7 @@ from motion_env.generation.closed_form import (
     causal_field,
     residual_field,
     smooth_field,
+    smoothstep,
     solve_limbs,
 )
 from motion_env.generation.feet import two_bone_ik
@@ -341,3 +342,31 @@ def test_leg_correction_next_to_a_plant_does_not_pop(walk, monkeypatch) -> None:
     acc = lambda j: np.abs(np.diff(j[:, ankle] - walk[:, ankle], 2, axis=0)).max()  # noqa: E731
     assert acc(out) < acc(unsmoothed) / 2
     np.testing.assert_allclose(bone_lengths(out), bone_lengths(walk), atol=1e-4)
+
+
+class _ArmsFlip:
+    """A composition standing in for the real one: (n, 263) features -> (n, 22, 3) joints whose
+    elbow flips 20 cm to the other side wherever channel 0 passes 0.5 (a shortened decoded arm)."""
+
+    def compose(self, features: np.ndarray, path: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+        joints = np.zeros((n, 22, 3), np.float32)
+        joints[:, :, 0] = features[:n, :1]  # the body moves with channel 0
+        joints[:, 19, 2] = np.where(features[:n, 0] > 0.5, 0.2, 0.0)
+        return joints, path
+
+
+def test_an_optimised_clip_that_composes_to_a_pop_keeps_less_of_its_change() -> None:
+    from motion_env.generation.refine import _without_new_pops
+
+    n, pipe, path = 40, _ArmsFlip(), np.zeros((40, 3), np.float32)
+    sampled = np.zeros((n, 263), np.float32)
+    sampled[:, 0] = 0.2 * np.sin(np.arange(n) / 4.0)  # a smooth motion, below 0.5
+    optimised = sampled.copy()
+    optimised[:, 0] += 0.45 * smoothstep((np.arange(n) - 5) / 30.0)  # a smooth change: past 0.5 late
+    guarded = _without_new_pops(pipe, sampled, optimised, path, n, guard=1.2)
+    np.testing.assert_allclose(guarded, sampled + 0.5 * (optimised - sampled), atol=1e-6)  # no flip
+    assert guarded[:, 0].max() < 0.5 < optimised[:, 0].max()
+    np.testing.assert_array_equal(_without_new_pops(pipe, sampled, optimised, path, n, guard=0.0), optimised)
+    small = sampled.copy()
+    small[:, 0] += 0.1 * smoothstep((np.arange(n) - 5) / 30.0)  # composes smoothly: kept whole
+    np.testing.assert_array_equal(_without_new_pops(pipe, sampled, small, path, n, guard=1.2), small)
