@@ -370,3 +370,20 @@ def test_an_optimised_clip_that_composes_to_a_pop_keeps_less_of_its_change() -> 
     small = sampled.copy()
     small[:, 0] += 0.1 * smoothstep((np.arange(n) - 5) / 30.0)  # composes smoothly: kept whole
     np.testing.assert_array_equal(_without_new_pops(pipe, sampled, small, path, n, guard=1.2), small)
+
+
+def test_a_big_wrist_correction_fades_over_enough_frames_to_stay_gentle(walk) -> None:
+    from motion_env.generation.closed_form import ARM_ACCEL
+
+    still = np.repeat(walk[:1], 80, axis=0)  # a body standing still: all acceleration is the finish's
+    shoulder, wrist = still[40, 17], still[40, RIGHT_WRIST]
+    rel = wrist - shoulder
+    turned = np.array([rel[0], -rel[2], rel[1]])  # the arm swung a quarter turn about the shoulder
+    targets = np.full(still.shape, np.nan, np.float32)
+    targets[40, RIGHT_WRIST] = shoulder + turned
+    sweep = float(np.linalg.norm(turned - rel))
+    assert 6 * sweep / FADE**2 > 1.5 * ARM_ACCEL  # faded over FADE frames alone it would be harsher
+    out = solve_limbs(still, targets, [], np.zeros((len(still), 2), bool))
+    assert np.linalg.norm(out[40, RIGHT_WRIST] - targets[40, RIGHT_WRIST]) < 1e-3
+    accel = np.linalg.norm(np.diff(out[:, RIGHT_WRIST], 2, axis=0), axis=-1)
+    assert accel.max() <= 1.5 * ARM_ACCEL
