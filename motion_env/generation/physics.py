@@ -14,9 +14,10 @@ floor. This stage, run on the feet stage's output, fixes the vertical motion of 
   (:func:`~motion_env.generation.ground.ground_feet`; legs are re-solved with
   :func:`~motion_env.generation.feet.two_bone_ik`, so bones keep their lengths and feet the
   horizontal place the feet stage pinned);
-- **flight**: while no foot touches the floor (no contact flag and both soles clear of it), the
-  centre of mass falls freely: a parabola of gravity :data:`GRAVITY` through the take-off and
-  landing heights (:func:`plan_heights`);
+- **flight**: while no foot touches the floor (no contact flag and both soles clear of it; or,
+  flagged or not, no foot the grounding would stand on: out of a stretched leg's reach, or more
+  than ``ground.PLANT_REACH`` above the floor), the centre of mass falls freely: a parabola of
+  gravity :data:`GRAVITY` through the take-off and landing heights (:func:`plan_heights`);
 - **contact**: with a foot on the floor the vertical acceleration of the centre of mass stays
   within what floor and legs can give (:data:`STANCE_ACCELERATION`), so take-offs and landings
   have no spikes.
@@ -35,6 +36,7 @@ import numpy as np
 from motion_env.generation.ground import (
     FLAT_ANKLE_HEIGHT,
     FLAT_ANKLE_RANGE,
+    PLANT_REACH,
     SWING_RISE,
     SWING_STRAIGHT,
     deepest_reach,
@@ -217,10 +219,12 @@ class PhysicsFilter:
                 )
             shift = (planned - com)[:, :, None]
             # A fall that brings a foot to the floor is a landing, whatever the flags say; a body
-            # whose feet cannot reach the floor is in the air.
+            # whose feet cannot reach the floor is in the air, and so is one whose feet the
+            # grounding leaves alone (ground.PLANT_REACH above the floor: a small hop whose slow
+            # feet keep their contact flags; in the air for the replay, it must fall freely).
             landed = flights & ((soles + shift).min(axis=2) < 0.0) & todo[:, None]
-            reach = np.where(support, lowest + shift > UNREACHABLE, True).all(axis=2)
-            aloft = ~flights & ~settled & reach & todo[:, None]
+            away = (lowest + shift > UNREACHABLE) | (soles + shift >= PLANT_REACH)
+            aloft = ~flights & ~settled & np.where(support, away, True).all(axis=2) & todo[:, None]
             todo = landed.any(axis=1) | aloft.any(axis=1)
             if not todo.any():
                 break

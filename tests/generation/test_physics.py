@@ -8,6 +8,7 @@ import pytest
 from motion_env.generation.feet import two_bone_ik
 from motion_env.generation.ground import (
     FLAT_ANKLE_HEIGHT,
+    PLANT_REACH,
     SWING_CLEARANCE,
     SWING_RISE,
     sole_heights,
@@ -112,6 +113,16 @@ def test_a_jump_falls_freely_between_take_off_and_landing() -> None:
     np.testing.assert_allclose(out[:, 0, [0, 2]], joints[:, 0, [0, 2]], atol=1e-6)  # only heights change
     np.testing.assert_allclose(_bones(out), _bones(joints), atol=1e-5)
     np.testing.assert_allclose(sole_heights(out[:12].astype(np.float64)), 0.0, atol=2e-3)
+
+
+def test_a_hop_with_its_feet_still_flagged_falls_freely_where_no_foot_is_stood_on() -> None:
+    # A decoder's contact channels mark slow feet, whatever their height: a small hop keeps them on.
+    joints, _ = _jump(frames=40, take_off=15, landing=23, peak=0.14)
+    out = apply_physics(joints, np.ones((40, 4), np.float32)).astype(np.float64)
+    com = centre_of_mass(out)[:, 1]
+    aloft = np.flatnonzero(sole_heights(out).min(axis=1)[1:-1] >= PLANT_REACH) + 1  # no foot to stand on
+    assert len(aloft) >= 4  # it still hops
+    np.testing.assert_allclose(np.diff(com, 2)[aloft - 1], -GRAVITY * DT2, atol=1e-4)
 
 
 def test_a_contacts_last_frame_is_not_stood_on() -> None:
