@@ -162,9 +162,7 @@ def main() -> None:
                 how = "within reach" if reach[-1] else f"steered; {own[-1]:.2f} against the route alone"
                 print(
                     f"  {take.name[:44]:<44} {'+'.join(names) if len(names) < 6 else 'all six':<14} "
-                    f"x{count:<5} ratio {ratios[-1]:.2f} "
-                    f"({how}), "
-                    f"error {errors[-1] * 100:.2f} cm"
+                    f"x{count:<5} ratio {ratios[-1]:.2f} ({how}), error {errors[-1] * 100:.2f} cm"
                 )
     r, near = np.array(ratios), np.array(reach)
     speed = f"{np.mean(seconds):.2f} s per controlled clip"

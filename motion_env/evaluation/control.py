@@ -104,13 +104,8 @@ def settings() -> list[tuple[str, tuple[str, ...], str]]:
 def off_the_floor(joints: np.ndarray) -> bool:
     """Whether a take's body is held up off the floor (:data:`OFF_FLOOR`): (T, 22, 3) joints."""
     height, frames = OFF_FLOOR
-    lowest = np.asarray(joints)[:, list(FOOT_JOINTS), 1].min(axis=1)
-    run = 0
-    for up in lowest > height:
-        run = run + 1 if up else 0
-        if run >= frames:
-            return True
-    return False
+    up = np.asarray(joints)[:, list(FOOT_JOINTS), 1].min(axis=1) > height
+    return bool(len(up) >= frames and np.convolve(up, np.ones(frames, int), "valid").max() >= frames)
 
 
 def _max_jump(joints: np.ndarray) -> float:
@@ -176,10 +171,10 @@ def evaluate_control(gen: Any, takes: list[Take], seed: int = 0, log: Any = None
     if log is not None:
         log(_fmt_row("no targets", results["no targets"]))
     on_floor = [not off_the_floor(take.joints) for take in takes]
-    floor_rows = []
+    setting_rows = []
     for name, joint_names, density in settings():
         row = _Row()
-        floor_rows.append(row)
+        setting_rows.append(row)
         for take in takes:
             t_len = len(take.joints)
             targets = np.full((t_len, 22, 3), np.nan, np.float32)
@@ -215,7 +210,7 @@ def evaluate_control(gen: Any, takes: list[Take], seed: int = 0, log: Any = None
         "takes_off_the_floor": [t.name for t, floor in zip(takes, on_floor) if not floor],
     }
     # The same errors without the takes off the floor: per setting, then over all their targets.
-    kept = [[e for e, floor in zip(row.errors, on_floor) if floor] for row in floor_rows]
+    kept = [[e for e, floor in zip(row.errors, on_floor) if floor] for row in setting_rows]
     per_setting = [np.concatenate(e) if e else np.zeros(0) for e in kept]
     flat = np.concatenate(per_setting) if per_setting else np.zeros(0)
     results["overall"]["on_the_floor_mean_error_cm"] = float(flat.mean() * 100) if flat.size else 0.0

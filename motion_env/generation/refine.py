@@ -340,7 +340,8 @@ def _smoothed_change(before: np.ndarray, after: np.ndarray, sigma: float) -> np.
 
 
 def _largest_acceleration(joints: np.ndarray) -> float:
-    return float(np.abs(np.diff(joints, 2, axis=0)).max(initial=0.0))
+    """The largest |second difference| of any joint (m per frame squared): (T, 22, 3) -> float."""
+    return float(np.linalg.norm(np.diff(joints, 2, axis=0), axis=-1).max(initial=0.0))
 
 
 def _without_new_pops(
@@ -433,8 +434,8 @@ def refine_clip(
         optimised, steps = optimise_body(
             pipe, codes, gpt_logits, features, aligned, reach, costs, config, keep, pelvis
         )
-        features = _without_new_pops(pipe, features, _smoothed_change(features, optimised, config.spread),
-                                     path, n, config.pop_guard)  # fmt: skip
+        smoothed = _smoothed_change(features, optimised, config.spread)
+        features = _without_new_pops(pipe, features, smoothed, path, n, config.pop_guard)
     contacts = features[:t_len, FOOT_CONTACT] > 0.5
     planted = contacts.reshape(t_len, 2, 2).any(axis=2)
     margin = 0.0
