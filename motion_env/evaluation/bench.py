@@ -12,6 +12,10 @@ What is measured (the definitions of ``docs/metrics.md``):
   median and 99th percentile over ``env_steps`` steps, in two cases: the agent issuing the route
   target (a character following its route), and a learner's case, a new random target (normalised
   action, no follow switch) every step;
+- controller roll-out: milliseconds per frame of the path controller's closed loop alone
+  (:meth:`PathController.run <motion_env.models.controller.PathController.run>`, 200 frames, each
+  character on its own timed route) at B = 1 and 64 characters, on each of its frame backends
+  (numpy and torch on the CPU: where ``frame_backend="auto"`` switches from one to the other);
 - vector-env throughput: env steps per second of the natively batched vector env
   (``vectorization_mode="vector_entry_point"``, one frame per step) with N = 1, 16, 64 characters,
   over ``vector_steps`` steps after a warm-up, in the same two cases.
@@ -136,6 +140,30 @@ def time_clip(generator: Any, runs: int = 10, num_frames: int = 200, warmup: int
         times.append((w1 - w0) * 1000.0)
         cpu.append((c1 - c0) * 1000.0)
     return {**_percentiles(times, (90,)), "runs": runs, "frames": num_frames, "cpu": _percentiles(cpu, (90,))}
+
+
+def time_controller(generator: Any, batch: int, backend: str, frames: int = 200, runs: int = 5) -> dict:
+    """Milliseconds per frame of the path controller's roll-out alone for `batch` characters on
+    frame backend `backend` ("numpy" or "torch", :attr:`PathController.frame_backend`): the median
+    of `runs` roll-outs of `frames` frames after one warm-up."""
+    controller = generator.pipeline.controller
+    text = torch.as_tensor(generator.encode_text([BENCH_TEXT] * batch), device=controller.device)
+    state = controller.init_state(text, _routes(batch))
+    saved, controller.frame_backend = controller.frame_backend, backend
+    times, cpu = [], []
+    try:
+        with torch.no_grad():
+            controller.run(state, frames)
+            for _ in range(runs):
+                w0, c0 = _clock()
+                controller.run(state, frames)
+                w1, c1 = _clock()
+                times.append((w1 - w0) * 1000.0 / frames)
+                cpu.append((c1 - c0) * 1000.0 / frames)
+    finally:
+        controller.frame_backend = saved
+    return {"batch": batch, "backend": backend, "ms_per_frame": float(np.median(times)),
+            "cpu": {"ms_per_frame": float(np.median(cpu))}}  # fmt: skip
 
 
 def _routes(batch: int) -> list[np.ndarray]:
@@ -331,6 +359,10 @@ def run_bench(
         "stream_lookahead_frames": gen.path_horizon,
         "control_delay_frames": gen.rate,
     }
+    if torch.device(device).type == "cpu":  # the numpy backend runs on the CPU only
+        results["controller"] = [
+            calibrated(time_controller, gen, b, backend) for b in (1, 64) for backend in ("numpy", "torch")
+        ]
     agents = bench_agents(gen)
     results["lookahead"] = "head" if "learner_exact" in agents else "exact"
     if env_steps > 0:
@@ -390,6 +422,9 @@ def format_results(results: dict[str, Any]) -> str:
                 f"stream throughput, B={b}", s["frames_per_s"], None, "frames/s", 0, _quiet(s, "frames_per_s")
             )
         )
+    for row in results.get("controller", []):
+        label = f"controller roll-out, B={row['batch']}, {row['backend']}"
+        lines.append(_row(label, row["ms_per_frame"], None, "ms/frame", 3, _quiet(row, "ms_per_frame")))
     for agent, label in AGENT_LABELS.items():
         env = results.get("env_step_ms" if agent == "route" else f"env_step_ms_{agent}")
         if env:
@@ -443,4 +478,5 @@ def _measurements(results: dict[str, Any]) -> list[dict[str, Any]]:
     """Every calibrated measurement of a results dict."""
     rows = [results.get("clip_latency_ms")] + [v for k, v in results.items() if k.startswith("env_step_ms")]
     rows += list(results.get("stream", [])) + list(results.get("vector_env", []))
+    rows += list(results.get("controller", []))
     return [r for r in rows if r and "calibration_ms" in r]

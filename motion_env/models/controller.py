@@ -27,14 +27,12 @@ from typing import Annotated
 
 import numpy as np
 import torch
-import torch.nn.functional as F
 from torch import nn
 
 from motion_env.models.controller_state import ControllerState, Trace
+from motion_env.models.frame_ops import TORCH, Array, Constants, NumpyOps, TorchOps
 from motion_env.models.waypoint_features import (
-    Constants,
     RouteView,
-    constants,
     from_heading_frame_torch,
     next_queue,
     pack_waypoints,
@@ -44,6 +42,11 @@ from motion_env.models.waypoint_features import (
 )
 from motion_env.motion.trajectory import validate_waypoints
 from motion_env.motion.validation import CheckedConfig, NonNegativeFloat, PositiveFloat, PositiveInt
+
+# The most characters a roll-out without gradients runs on numpy (PathController._ops).
+NUMPY_MAX_BATCH = 8
+# What PathController.frame_backend may be.
+FRAME_BACKENDS = ("auto", "torch", "numpy")
 
 
 @dataclass
@@ -98,6 +101,11 @@ class PathController(nn.Module):
         nn.init.zeros_(self.out[-1].weight)
         nn.init.zeros_(self.out[-1].bias)
         self._text_cache: tuple[torch.Tensor, tuple[int, int], torch.Tensor] | None = None
+        self._numpy = NumpyOps()  # the frame's backend for roll-outs without gradients on the CPU
+        # Where a roll-out's frames run (FRAME_BACKENDS): "auto" (numpy for a few characters on the
+        # CPU without gradients, else torch), "torch" (the same numbers on any device, to the bit),
+        # or "numpy" (CPU, no gradients); the two agree to float32 rounding.
+        self.frame_backend = "auto"
 
     @classmethod
     def drifting(cls, config: ControllerConfig, std: float) -> PathController:
@@ -274,7 +282,7 @@ class PathController(nn.Module):
         """
         view = route_view(state.waypoints, state.count, state.queue, self.config.num_slots)
         frame = state.frame.unsqueeze(1).float()
-        const = constants(self.config.step_scale, self.config.turn_scale, state.pos.dtype)
+        const = TORCH.constants(self.config.step_scale, self.config.turn_scale, state.pos.dtype)
         feats, target = slot_features(view, state.pos, state.theta, frame, self.config.max_time_to_go, const)
         return feats, target, view.final
 
@@ -305,45 +313,64 @@ class PathController(nn.Module):
             self.out[0].weight, self.out[0].bias, self.out[2].weight, self.out[2].bias,
         )  # fmt: skip
 
+    def _ops(self, batch: int = 1) -> TorchOps:
+        """The backend a roll-out of `batch` characters runs on (:mod:`motion_env.models.frame_ops`),
+        as :attr:`frame_backend` says. "auto": numpy on the CPU without gradients for a few
+        characters (a third of torch's per-operation cost at one frame's sizes), else torch (its
+        matrix products win from about 16 rows on: per frame 0.28 / 0.46 ms at one character,
+        1.69 / 1.48 ms at 64, numpy / torch; ``motion-env bench``'s controller rows)."""
+        backend = self.frame_backend
+        if backend not in FRAME_BACKENDS:
+            raise ValueError(f"PathController.frame_backend must be one of {FRAME_BACKENDS}, got {backend!r}")
+        numpy_ok = not torch.is_grad_enabled() and self.device.type == "cpu"
+        if backend == "numpy" and not numpy_ok:
+            raise ValueError(
+                "PathController.frame_backend='numpy' runs roll-outs without gradients on the CPU only "
+                f"(gradients {'on' if torch.is_grad_enabled() else 'off'}, device {self.device})"
+            )
+        if backend == "torch" or not numpy_ok or (backend == "auto" and batch > NUMPY_MAX_BATCH):
+            return TORCH
+        return self._numpy
+
     def _frame(
         self,
-        weights: tuple[torch.Tensor, ...],
+        ops: TorchOps,
+        weights: tuple[Array, ...],
         const: Constants,
-        text: torch.Tensor,
+        text: Array,
         view: RouteView,
-        pos: torch.Tensor,
-        theta: torch.Tensor,
-        vel: torch.Tensor,
-        hidden: torch.Tensor,
-        frame: torch.Tensor,
-    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        pos: Array,
+        theta: Array,
+        vel: Array,
+        hidden: Array,
+        frame: Array,
+    ) -> tuple[Array, Array, Array, Array]:
         """One frame of the network, the arrive gating and the integration: (pos, theta, vel, hidden)
-        of the next frame. `text` is the (B, text_dim) captions, `frame` (B, 1) float, `weights`
-        :meth:`_weights`: the modules' forward passes are called as functions (the same kernels,
-        without the modules' overhead)."""
+        of the next frame, in `ops`'s arrays. `text` is the (B, text_proj) captions' projection
+        (:meth:`_text_features`), `frame` (B, 1) float, `weights` :meth:`_weights` as
+        ``ops.weights`` makes them: the modules' forward passes are called as functions (the same
+        kernels, without the modules' overhead)."""
         c = self.config
         w1, b1, w2, b2, w_ih, w_hh, b_ih, b_hh, w3, b3, w4, b4 = weights
-        wfeat, target = slot_features(view, pos, theta, frame, c.max_time_to_go, const)
+        wfeat, target = slot_features(view, pos, theta, frame, c.max_time_to_go, const, ops)
         # Velocities in m/s and rad/s are O(1) already; halve them to keep sprints in range.
-        x = torch.cat([self._text_features(text), wfeat, vel * const.half], dim=-1)
-        z = F.gelu(F.linear(F.gelu(F.linear(x, w1, b1)), w2, b2))  # self.inp: (B, mlp)
-        hidden = torch.gru_cell(z, hidden, w_ih, w_hh, b_ih, b_hh)  # self.gru: (B, hidden)
-        raw = F.linear(F.gelu(F.linear(torch.cat([hidden, z], dim=-1), w3, b3)), w4, b4)  # self.out: (B, 3)
+        x = ops.cat([text, wfeat, vel * const.half], -1)
+        z = ops.gelu(ops.linear(ops.gelu(ops.linear(x, w1, b1)), w2, b2))  # self.inp: (B, mlp)
+        hidden = ops.gru_cell(z, hidden, w_ih, w_hh, b_ih, b_hh)  # self.gru: (B, hidden)
+        raw = ops.linear(ops.gelu(ops.linear(ops.cat([hidden, z], -1), w3, b3)), w4, b4)  # self.out: (B, 3)
         step_xz = raw[:, :2] * const.step_scale  # (B, 2) metres per frame, heading frame
         turn = raw[:, 2] * const.turn_scale  # (B,) radians per frame
         if view.any_final:
             # Arrive gating: near the last waypoint, blend into a direct approach with zero turn. The
             # gate falls quadratically so the approach (linear in the distance) always wins up
             # close. (Elsewhere the gate is 1: the step is the network's, computed as such.)
-            dist = target.norm(dim=-1)
-            gate = torch.where(
-                view.final, (dist / c.arrive_radius).clamp(max=1.0) ** 2, torch.ones_like(dist)
-            )
+            dist = ops.norm(target)
+            gate = ops.where(view.final, ops.clip(dist / c.arrive_radius, max=1.0) ** 2, 1.0)
             step_xz = gate[:, None] * step_xz + (1.0 - gate[:, None]) * c.seek_rate * target
             turn = gate * turn
         new_theta = theta + turn
-        pos = pos + from_heading_frame_torch(step_xz, theta + turn * const.half)
-        vel = torch.cat([step_xz, turn.unsqueeze(1)], dim=-1) * const.fps
+        pos = pos + from_heading_frame_torch(step_xz, theta + turn * const.half, ops)
+        vel = ops.cat([step_xz, turn[:, None]], -1) * const.fps
         return pos, new_theta, vel, hidden
 
     def run(
@@ -351,10 +378,11 @@ class PathController(nn.Module):
     ) -> tuple[ControllerState, Trace]:
         """Advance every character by `num_steps` frames: the closed loop of training and inference.
 
-        Differentiable when gradients are on. Per frame only the network and the features that
-        move with the character are computed; the route's part of the features (:func:`route_view`)
-        is made again only when a waypoint is passed (tested on each character's current target:
-        a timed one by its frame, without touching tensors, an untimed one by its distance).
+        Differentiable when gradients are on (then on torch; without them on the CPU the frames
+        run on numpy, :meth:`_ops`). Per frame only the network and the features that move with
+        the character are computed; the route's part of the features (:func:`route_view`) is
+        made again only when a waypoint is passed (tested on each character's current target: a
+        timed one by its frame, without touching tensors, an untimed one by its distance).
 
         Returns:
             (the state after the last frame, the :class:`Trace` of frames 1..num_steps: roots
@@ -362,9 +390,15 @@ class PathController(nn.Module):
         """
         c = self.config
         num_steps = int(num_steps)
-        weights, const = self._weights(), constants(c.step_scale, c.turn_scale, state.pos.dtype)
-        pos, theta, vel, hidden, queue = state.pos, state.theta, state.vel, state.hidden, state.queue
-        frames = (state.frame.unsqueeze(1) + torch.arange(num_steps + 1, device=state.frame.device)).float()
+        ops = self._ops(state.pos.shape[0])
+        weights = ops.weights(self._weights())
+        const = ops.constants(c.step_scale, c.turn_scale, state.pos.dtype)
+        text = ops.array(self._text_features(state.text))
+        pos, theta, vel, hidden = (ops.array(x) for x in (state.pos, state.theta, state.vel, state.hidden))
+        queue = state.queue
+        frames = ops.array(
+            (state.frame.unsqueeze(1) + torch.arange(num_steps + 1, device=state.frame.device)).float()
+        )
         roots, poss, thetas, vels, hiddens, queues = [], [], [], [], [], []
         # With gradients each frame's root is made as the frame ends (the order in which the
         # gradients are summed stays that of stepping frame by frame); without, all at the end.
@@ -374,11 +408,18 @@ class PathController(nn.Module):
             if n:
                 moved = n >= due
                 if not moved and view.any_near:
-                    near = torch.linalg.vector_norm(view.xy[:, 0] - pos.detach(), dim=-1) < c.arrive_radius
+                    near = ops.norm(view.xy[:, 0] - ops.detach(pos)) < c.arrive_radius
                     moved = bool((near & view.near).any())
                 if moved:
                     frame = state.frame + n
-                    queue = next_queue(state.waypoints, state.count, queue, pos, frame, c.arrive_radius)
+                    queue = next_queue(
+                        state.waypoints,
+                        state.count,
+                        queue,
+                        ops.tensor(pos, state.pos),
+                        frame,
+                        c.arrive_radius,
+                    )
                     view = None
                 if grad:
                     roots.append(torch.cat([pos, theta.unsqueeze(1)], dim=-1))
@@ -391,28 +432,43 @@ class PathController(nn.Module):
                     queues.append(queue)
             if n == num_steps:
                 break
-            frame = frames.narrow(1, n, 1)  # (B, 1)
+            frame = frames[:, n : n + 1]  # (B, 1)
             if view is None:
-                view = route_view(state.waypoints, state.count, queue, c.num_slots)
+                torch_view = route_view(state.waypoints, state.count, queue, c.num_slots)
                 # The earliest step at which some character's timed target is due (frames are
                 # whole numbers, so the comparison is exact in float64).
-                due = n + (view.due.double() - (state.frame + n).double()).min().item()
+                due = n + (torch_view.due.double() - (state.frame + n).double()).min().item()
+                view = ops.view(torch_view)
+            if grad:  # a projection per frame: the gradients sum in the order of stepping frame by frame
+                text = self._text_features(state.text)
             pos, theta, vel, hidden = self._frame(
-                weights, const, state.text, view, pos, theta, vel, hidden, frame
+                ops, weights, const, text, view, pos, theta, vel, hidden, frame
             )
         frame = state.frame + num_steps
-        new = replace(state, pos=pos, theta=theta, vel=vel, hidden=hidden, frame=frame, queue=queue)
+        like = state.pos
+        new = replace(
+            state,
+            pos=ops.tensor(pos, like),
+            theta=ops.tensor(theta, like),
+            vel=ops.tensor(vel, like),
+            hidden=ops.tensor(hidden, like),
+            frame=frame,
+            queue=queue,
+        )
         if not num_steps:
             return new, Trace(roots=state.pos.new_zeros((state.pos.shape[0], 0, 3)))
         if grad:
             out = Trace(roots=torch.stack(roots, dim=1))
         else:
             out = Trace(
-                roots=torch.cat([torch.stack(poss, dim=1), torch.stack(thetas, dim=1)[..., None]], dim=-1)
+                roots=ops.tensor(ops.cat([ops.stack(poss, 1), ops.stack(thetas, 1)[..., None]], -1), like)
             )
         if trace:
             out = Trace(
-                out.roots, torch.stack(vels, dim=1), torch.stack(hiddens, dim=1), torch.stack(queues, dim=1)
+                out.roots,
+                ops.tensor(ops.stack(vels, 1), like),
+                ops.tensor(ops.stack(hiddens, 1), like),
+                torch.stack(queues, dim=1),
             )
         return new, out
 

@@ -10,12 +10,11 @@ and re-pad the route at every frame.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 import torch
 
-from motion_env.motion.skeleton import FPS
+from motion_env.models.frame_ops import TORCH, Array, Constants, TorchOps
 from motion_env.motion.trajectory import validate_waypoints
 
 # Features per waypoint slot (see PathController.waypoint_features).
@@ -28,16 +27,17 @@ def step_input_dim(text_proj: int, num_slots: int) -> int:
     return text_proj + num_slots * WAYPOINT_FEATURES + 3
 
 
-def to_heading_frame_torch(vec: torch.Tensor, theta: torch.Tensor) -> torch.Tensor:
-    """Torch twin of :func:`motion_env.motion.to_heading_frame`: world (..., 2) -> (lateral, forward)."""
-    c, s = torch.cos(theta), torch.sin(theta)
-    return torch.stack([vec[..., 0] * c - vec[..., 1] * s, vec[..., 0] * s + vec[..., 1] * c], dim=-1)
+def to_heading_frame_torch(vec: Array, theta: Array, ops: TorchOps = TORCH) -> Array:
+    """Torch twin of :func:`motion_env.motion.to_heading_frame`: world (..., 2) -> (lateral, forward)
+    (on numpy arrays with ``ops`` a :class:`~motion_env.models.frame_ops.NumpyOps`)."""
+    c, s = ops.cos(theta), ops.sin(theta)
+    return ops.stack([vec[..., 0] * c - vec[..., 1] * s, vec[..., 0] * s + vec[..., 1] * c], -1)
 
 
-def from_heading_frame_torch(vec: torch.Tensor, theta: torch.Tensor) -> torch.Tensor:
+def from_heading_frame_torch(vec: Array, theta: Array, ops: TorchOps = TORCH) -> Array:
     """Torch twin of :func:`motion_env.motion.from_heading_frame`: (lateral, forward) -> world (..., 2)."""
-    c, s = torch.cos(theta), torch.sin(theta)
-    return torch.stack([vec[..., 0] * c + vec[..., 1] * s, -vec[..., 0] * s + vec[..., 1] * c], dim=-1)
+    c, s = ops.cos(theta), ops.sin(theta)
+    return ops.stack([vec[..., 0] * c + vec[..., 1] * s, -vec[..., 0] * s + vec[..., 1] * c], -1)
 
 
 @dataclass
@@ -70,30 +70,6 @@ class RouteView:
     any_final: bool
     any_near: bool
     all_valid: bool
-
-
-class Constants(NamedTuple):
-    """The numbers a frame multiplies and divides by, as 0-dim CPU tensors: a tensor operation
-    takes them as it takes a Python number (a CPU scalar on any device: the same kernel, the same
-    rounding), without wrapping the number into a tensor again at every operation."""
-
-    half: torch.Tensor
-    quarter: torch.Tensor
-    fps: torch.Tensor
-    step_scale: torch.Tensor
-    turn_scale: torch.Tensor
-
-
-_CONSTANTS: dict[tuple[float, float, torch.dtype], Constants] = {}
-
-
-def constants(step_scale: float, turn_scale: float, dtype: torch.dtype) -> Constants:
-    """The :class:`Constants` of a controller's step and turn scales (made once per dtype)."""
-    key = (step_scale, turn_scale, dtype)
-    if key not in _CONSTANTS:
-        values = (0.5, 0.25, float(FPS), step_scale, turn_scale)
-        _CONSTANTS[key] = Constants(*(torch.tensor(v, dtype=dtype) for v in values))
-    return _CONSTANTS[key]
 
 
 def route_view(
@@ -130,35 +106,37 @@ def route_view(
 
 def slot_features(
     view: RouteView,
-    pos: torch.Tensor,
-    theta: torch.Tensor,
-    frame: torch.Tensor,
+    pos: Array,
+    theta: Array,
+    frame: Array,
     max_time_to_go: float,
     const: Constants,
-) -> tuple[torch.Tensor, torch.Tensor]:
+    ops: TorchOps = TORCH,
+) -> tuple[Array, Array]:
     """The waypoint features of characters at (B, 2) `pos`, (B,) `theta` and (B, 1) float `frame`
     (see :meth:`PathController.waypoint_features`): ((B, S * 9) features, (B, 2) offset to the
-    current target in the heading frame)."""
+    current target in the heading frame). On numpy arrays with `ops` and `view` from
+    :class:`~motion_env.models.frame_ops.NumpyOps`."""
     b = view.xy.shape[0]
-    # (pos.unsqueeze(1) is made twice: one shared node would sum the gradients in another order.)
-    offset = to_heading_frame_torch(view.xy - pos.unsqueeze(1), theta.unsqueeze(1))  # (B, S, 2)
-    dist = torch.linalg.vector_norm(offset, dim=-1)  # (B, S)
-    ttg = ((view.time - frame) / const.fps).clamp(0.0, max_time_to_go)  # untimed: 0
-    speed = torch.where(view.timed, dist / (ttg + const.quarter), 0.0).clamp(max=10.0)
-    seg = torch.linalg.vector_norm(view.xy - torch.cat([pos.unsqueeze(1), view.xy_prev], dim=1), dim=-1)
-    feats = torch.stack(
+    # (pos[:, None] is made twice: one shared node would sum the gradients in another order.)
+    offset = to_heading_frame_torch(view.xy - pos[:, None], theta[:, None], ops)  # (B, S, 2)
+    dist = ops.norm(offset)  # (B, S)
+    ttg = ops.clip((view.time - frame) / const.fps, min=0.0, max=max_time_to_go)  # untimed: 0
+    speed = ops.clip(ops.where(view.timed, dist / (ttg + const.quarter), 0.0), max=10.0)
+    seg = ops.norm(view.xy - ops.cat([pos[:, None], view.xy_prev], 1))
+    feats = ops.stack(
         [
-            offset[..., 0] / dist.clamp(min=1.0),
-            offset[..., 1] / dist.clamp(min=1.0),
-            torch.log1p(dist),
+            offset[..., 0] / ops.clip(dist, min=1.0),
+            offset[..., 1] / ops.clip(dist, min=1.0),
+            ops.log1p(dist),
             view.timed_flag,
             ttg,
             speed,
             view.is_last,
             view.valid,
-            torch.log1p(seg),
+            ops.log1p(seg),
         ],
-        dim=-1,
+        -1,
     )  # (B, S, 9)
     if not view.all_valid:
         feats = feats * view.valid[..., None]
