@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 import torch
@@ -49,6 +49,11 @@ class GPTTrainConfig(TrainConfig):
     text_drop: Fraction = 0.1  # share of samples trained with the null text (classifier-free guidance)
     start_crop: Fraction = 0.3  # share of crops that start at the clip's first token
     text_noise: NonNegativeFloat = 0.3  # expected norm of the noise added to caption embeddings (0: off)
+    # Input tokens replaced by random ones (the targets stay), so that the model learns to go on
+    # from a past it sampled itself, mistakes included: T2M-GPT's corrupted inputs (its pkeep; a
+    # share drawn per sequence, its pkeep = -1, was its better setting on the smaller KIT-ML).
+    token_keep: Annotated[float, "(0, 1]"] = 1.0  # share of input tokens kept (1: no corruption)
+    token_keep_random: bool = False  # instead, each crop keeps a share drawn uniformly in [0, 1]
     encoder: str = DEFAULT_TEXT_ENCODER  # text encoder name (motion_env.text.load_text_encoder)
     init: str | None = None  # GPT checkpoint (packaged ones too) a fresh run starts from: weights, config
 
@@ -308,4 +313,18 @@ def _sample_batch(
     )
     text = jitter_embeddings(text, config.text_noise, rng)
     drop = torch.from_numpy(rng.random(B) < config.text_drop)
-    return prev, path, targets, text, drop
+    keep = rng.random((B, 1)) if config.token_keep_random else np.full((B, 1), config.token_keep)
+    return corrupt_inputs(prev, keep, model_config, rng), path, targets, text, drop
+
+
+def corrupt_inputs(
+    prev: torch.Tensor, keep: np.ndarray, model_config: GPTConfig, rng: np.random.Generator
+) -> torch.Tensor:
+    """(B, N) input tokens with each motion token of row b replaced, with probability
+    ``1 - keep[b]`` ((B, 1) shares), by a token drawn uniformly from the vocabulary; START inputs
+    stay (they mark a clip's start)."""
+    if np.all(keep >= 1.0):
+        return prev
+    swap = torch.from_numpy(rng.random(prev.shape) >= keep) & (prev != model_config.start_token)
+    noise = torch.from_numpy(rng.integers(0, model_config.vocab_size, size=prev.shape))
+    return torch.where(swap, noise, prev)

@@ -5,13 +5,15 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pytest
+import torch
 
 from motion_env.models.checkpoint import load_checkpoint
 from motion_env.models.gpt import GPTConfig, TokenGPT
 from motion_env.models.vqvae import VQVAEConfig
 from motion_env.text.encoders import TextEncoder
-from motion_env.training.gpt import GPTTrainConfig, train_gpt
+from motion_env.training.gpt import GPTTrainConfig, corrupt_inputs, train_gpt
 from motion_env.training.vqvae import VQVAETrainConfig, train_vqvae
 
 TINY_VQ = VQVAEConfig(width=16, code_dim=8, codebook_size=16, depth=1)
@@ -31,7 +33,7 @@ def test_train_gpt_end_to_end(
     tiny_dataset: Path, vqvae: Path, tmp_path: Path, hash_text: Callable[..., TextEncoder]
 ) -> None:
     out = tmp_path / "gpt.pt"
-    fast = dict(batch_size=4, save_every=2, log_every=2, progress=False)
+    fast = dict(batch_size=4, save_every=2, log_every=2, progress=False, token_keep_random=True)
     m = train_gpt(tiny_dataset, vqvae, out, GPTTrainConfig(steps=4, **fast), TINY_GPT, hash_text())
     assert m["step"] == 4 and 0.0 <= m["val_accuracy"] <= 1.0
     assert 1.0 <= m["val_perplexity"] < 1e4 and 0.0 <= m["train_accuracy"] <= 1.0
@@ -93,3 +95,19 @@ def test_fine_tune_starts_from_the_init_weights(
                   other, hash_text())  # fmt: skip
     with pytest.raises(ValueError, match="GPTTrainConfig.init"):
         GPTTrainConfig(init=" ")
+
+
+def test_corrupted_inputs_keep_their_share_and_the_start() -> None:
+    """T2M-GPT's corruption: about 1 - keep of a row's motion tokens replaced by random ones, START
+    never, a row with keep 1 untouched; the batch sampler draws a share per crop when asked."""
+    config = GPTConfig(vocab_size=64)
+    rng = np.random.default_rng(0)
+    prev = torch.from_numpy(rng.integers(0, 64, size=(3, 400)))
+    prev[:, 0] = config.start_token
+    out = corrupt_inputs(prev, np.array([[1.0], [0.5], [0.1]]), config, rng)
+    changed = (out != prev).float().mean(1)
+    assert torch.equal(out[0], prev[0]) and bool((out[:, 0] == config.start_token).all())
+    assert abs(float(changed[1]) - 0.5 * 63 / 64) < 0.07 and abs(float(changed[2]) - 0.9 * 63 / 64) < 0.07
+    assert int(out[:, 1:].max()) < 64  # random tokens are motion tokens
+    with pytest.raises(ValueError, match="token_keep"):
+        GPTTrainConfig(token_keep=0.0)
