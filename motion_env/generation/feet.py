@@ -248,45 +248,56 @@ class FootPinner:
         decoded = np.asarray(joints).astype(np.float64)
         flags = np.asarray(contacts) > 0.5
         out = decoded.copy()
-        for leg in range(len(LEGS)):
-            state = [a[rows, leg].copy() for a in (self.pins, self.offset, self.released, self.since)]
-            check = np.zeros(flags.shape[:2], dtype=bool)
-            # Frames whose leg bends too far at the ankle (rare: a jump's crouch) are done again,
-            # each pin giving way there as far as ankle_room asks, until no new ones appear.
-            for _ in range(_ANKLE_PASSES):
-                bent = _re_solve(out, decoded, leg, self._pin(rows, decoded, flags, leg, check))
-                if not (bent & ~check).any():
-                    break
-                check |= bent
-                for a, saved in zip((self.pins, self.offset, self.released, self.since), state):
-                    a[rows, leg] = saved
+        fields = (self.pins, self.offset, self.released, self.since)
+        saved = [a[rows].copy() for a in fields]
+        check = np.zeros(flags.shape[:2] + (len(LEGS),), dtype=bool)
+        # Frames whose leg bends too far at the ankle (rare: a jump's crouch) are done again, each
+        # pin giving way there as far as ankle_room asks, until no new ones appear. The legs are
+        # pinned together and re-solved one by one; each leg's passes are its own (a leg done
+        # again from the saved state with the checks it had gives what it gave).
+        for n in range(_ANKLE_PASSES):
+            if n:
+                for a, state in zip(fields, saved, strict=True):
+                    a[rows] = state
+            offsets = self._pin(rows, decoded, flags, check)  # (R, n, legs, 2)
+            bent = np.stack(
+                [_re_solve(out, decoded, leg, offsets[:, :, leg]) for leg in range(len(LEGS))], -1
+            )
+            new = (bent & ~check).any(axis=(0, 1))  # (legs,)
+            if not new.any():
+                break
+            check |= bent
+            if n == _ANKLE_PASSES - 1:  # out of passes: a leg still bending keeps its state from before
+                for a, state in zip(fields, saved, strict=True):
+                    a[rows[:, None], np.nonzero(new)[0]] = state[:, new]
         return out.astype(np.float32)
 
-    def _pin(
-        self, rows: np.ndarray, joints: np.ndarray, flags: np.ndarray, leg: int, check: np.ndarray
-    ) -> np.ndarray:
-        """(R, n, 2) horizontal corrections of leg `leg`'s ankle in the new frames `joints` (R, n,
-        22, 3) of characters `rows`, flags (R, n, 4) > 0.5; updates the pins. In the frames of
-        `check` (R, n) the correction is cut to its ankle_room (and the pin slides with it)."""
-        _, _, ankle, toe = LEGS[leg]
-        r = np.arange(len(rows))
-        offsets = np.zeros(joints.shape[:2] + (2,))
+    def _pin(self, rows: np.ndarray, joints: np.ndarray, flags: np.ndarray, check: np.ndarray) -> np.ndarray:
+        """(R, n, legs, 2) horizontal corrections of each leg's ankle in the new frames `joints`
+        (R, n, 22, 3) of characters `rows`, flags (R, n, 4) > 0.5; updates the pins. In the frames
+        and legs of `check` (R, n, legs) the correction is cut to its ankle_room (and the pin slides
+        with it)."""
+        ankles, toes = [leg[2] for leg in LEGS], [leg[3] for leg in LEGS]
+        # What each frame asks of each leg, before the frame loop: the ankle's flag wins; the toe
+        # alone is pinned while the heel lifts; the pinned joint's place.
+        kinds = np.where(flags[..., 0::2], 0, np.where(flags[..., 1::2], 1, -1))  # (R, n, legs)
+        shown = np.where((kinds == 0)[..., None], joints[:, :, ankles], joints[:, :, toes])[..., [0, 2]]
+        offsets = np.zeros(kinds.shape + (2,))
         for t in range(joints.shape[1]):
-            # The ankle's flag wins; the toe alone is pinned while the heel lifts.
-            kind = np.where(flags[:, t, 2 * leg], 0, np.where(flags[:, t, 2 * leg + 1], 1, -1))
-            pins = self.pins[rows, leg]  # (R, 2 kinds, 2)
-            pins[kind != 0, 0] = np.nan
-            pins[kind != 1, 1] = np.nan
+            kind = kinds[:, t]  # (R, legs)
+            pins = self.pins[rows]  # (R, legs, 2 kinds, 2)
+            pins[:, :, 0][kind != 0] = np.nan
+            pins[:, :, 1][kind != 1] = np.nan
             free = kind < 0
-            since = self.since[rows, leg] + free
-            offset = self.released[rows, leg] * release_fade(since)[:, None]
-            held = np.nonzero(~free)[0]
-            if len(held):
-                k = kind[held]
-                xz = joints[held, t][np.arange(len(held)), np.where(k == 0, ankle, toe)][:, [0, 2]]
-                pin = pins[held, k]
+            since = self.since[rows] + free
+            offset = self.released[rows] * release_fade(since)[..., None]
+            held_row, held_leg = np.nonzero(~free)
+            if len(held_row):
+                k = kind[held_row, held_leg]
+                xz = shown[held_row, t, held_leg]
+                pin = pins[held_row, held_leg, k]
                 fresh = np.isnan(pin[:, 0])
-                pin[fresh] = xz[fresh] + self.offset[rows[held], leg][fresh]  # where it is shown now
+                pin[fresh] = xz[fresh] + self.offset[rows[held_row], held_leg][fresh]  # where it is shown now
                 moved = pin - xz
                 dist = vector_norm(moved)
                 creep = np.where(fresh, 0.0, np.minimum(FOOT_CREEP_RATE * dist, FOOT_CREEP))
@@ -294,16 +305,17 @@ class FootPinner:
                 norm = vector_norm(moved)
                 far = norm > FOOT_MAX_OFFSET
                 moved[far] *= (FOOT_MAX_OFFSET / norm[far])[:, None]
-                cut = np.nonzero(check[held, t])[0]
-                if len(cut):
-                    moved[cut] *= ankle_room(joints[held[cut], t], leg, moved[cut])[:, None]
-                pins[held, k] = xz + moved  # the pin slides with the foot where it is cut
-                offset[held] = moved
-                self.released[rows[held], leg] = moved
-                since[held] = 0
-            self.pins[rows, leg] = pins
-            self.since[rows, leg] = since
-            self.offset[rows, leg] = offsets[r, t] = offset
+                for leg in range(len(LEGS)):
+                    cut = np.nonzero(check[held_row, t, held_leg] & (held_leg == leg))[0]
+                    if len(cut):
+                        moved[cut] *= ankle_room(joints[held_row[cut], t], leg, moved[cut])[:, None]
+                pins[held_row, held_leg, k] = xz + moved  # the pin slides with the foot where it is cut
+                offset[held_row, held_leg] = moved
+                self.released[rows[held_row], held_leg] = moved
+                since[held_row, held_leg] = 0
+            self.pins[rows] = pins
+            self.since[rows] = since
+            self.offset[rows] = offsets[:, t] = offset
         return offsets
 
 

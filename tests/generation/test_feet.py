@@ -252,6 +252,24 @@ def test_a_pin_gives_way_before_the_ankle_bends_beyond_its_range() -> None:
     np.testing.assert_allclose(np.concatenate(tokens), out, atol=1e-6)
 
 
+def test_each_leg_is_pinned_as_if_alone() -> None:
+    """The legs are pinned together: a leg's frames and pins do not depend on the other leg's
+    contacts, nor on how many passes the other leg needs (here the body drifts over planted feet,
+    so the left leg's pin gives way at the ankle while the right foot is free or planted)."""
+    n = 24
+    joints = np.repeat(_pose()[None], n, axis=0)
+    joints[..., 2] += 0.03 * np.arange(n)[:, None]
+    both, left_only = np.ones((n, 4)), np.ones((n, 4))
+    left_only[:, 2:] = 0.0
+    out_both, out_left = FootPinner(1), FootPinner(1)
+    a = out_both.apply(0, joints, both)
+    b = out_left.apply(0, joints, left_only)
+    left = list(LEGS[0])
+    np.testing.assert_array_equal(a[:, left], b[:, left])
+    np.testing.assert_array_equal(out_both.pins[:, 0], out_left.pins[:, 0])
+    assert not np.array_equal(a[:, list(LEGS[1])], b[:, list(LEGS[1])])  # the right leg did change
+
+
 def test_ankle_room_takes_the_whole_correction_where_the_leg_allows() -> None:
     rows = np.repeat(_pose()[None], 3, axis=0)
     offset = np.array([[0.0, 0.02], [0.0, -0.02], [0.02, 0.0]])
