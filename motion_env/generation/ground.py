@@ -120,24 +120,29 @@ def ground_feet(
     out = np.array(joints, dtype=np.float64)
     sole = sole_heights(out, flat_ankle)  # (N, 2)
     low = np.zeros_like(sole) if clearance is None else np.asarray(clearance)
-    for leg, (hip, knee, ankle, toe) in enumerate(LEGS):
+    # Each leg's frames that move, then one IK call for the two legs' (a leg's move reads and
+    # writes only its own joints, and the IK is per frame).
+    legs, frames, lifts = [], [], []
+    for leg, (hip, knee, ankle, _) in enumerate(LEGS):
         down = planted[:, leg] & (sole[:, leg] < PLANT_REACH)
         lift = np.where(down, -sole[:, leg], np.maximum(low[:, leg] - sole[:, leg], 0.0))
         lift = np.maximum(lift, deepest_reach(out[:, hip], out[:, knee], out[:, ankle]))
         moved = np.nonzero(np.abs(lift) > 1e-6)[0]
-        if not len(moved):
-            continue
-        frames = out[moved]
-        goal = frames[:, ankle].copy()
-        goal[:, 1] += lift[moved]
-        toes = frames[:, toe] - frames[:, ankle]
-        toes[:, 1] = 0.0  # a straight knee bends the way the foot points
-        new_knee, new_ankle = two_bone_ik(
-            frames[:, hip], frames[:, knee], frames[:, ankle], goal, toes, hint_length=TOE_HINT_LENGTH
-        )
-        frames[:, toe] += new_ankle - frames[:, ankle]
-        frames[:, knee], frames[:, ankle] = new_knee, new_ankle
-        out[moved] = frames
+        legs.append(np.full(len(moved), leg))
+        frames.append(moved)
+        lifts.append(lift[moved])
+    frame, leg_of = np.concatenate(frames), np.concatenate(legs)
+    if not len(frame):
+        return out
+    chain = np.asarray(LEGS)[leg_of]  # (M, 4) hip, knee, ankle, toe of each moved leg
+    hip, knee, ankle, toe = (out[frame, chain[:, j]] for j in range(4))
+    goal = ankle.copy()
+    goal[:, 1] += np.concatenate(lifts)
+    toes = toe - ankle
+    toes[:, 1] = 0.0  # a straight knee bends the way the foot points
+    new_knee, new_ankle = two_bone_ik(hip, knee, ankle, goal, toes, hint_length=TOE_HINT_LENGTH)
+    out[frame, chain[:, 3]] = toe + (new_ankle - ankle)
+    out[frame, chain[:, 1]], out[frame, chain[:, 2]] = new_knee, new_ankle
     return out
 
 
