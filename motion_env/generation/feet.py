@@ -260,9 +260,7 @@ class FootPinner:
                 for a, state in zip(fields, saved, strict=True):
                     a[rows] = state
             offsets = self._pin(rows, decoded, flags, check)  # (R, n, legs, 2)
-            bent = np.stack(
-                [_re_solve(out, decoded, leg, offsets[:, :, leg]) for leg in range(len(LEGS))], -1
-            )
+            bent = _re_solve(out, decoded, offsets)  # (R, n, legs)
             new = (bent & ~check).any(axis=(0, 1))  # (legs,)
             if not new.any():
                 break
@@ -319,29 +317,29 @@ class FootPinner:
         return offsets
 
 
-def _re_solve(out: np.ndarray, decoded: np.ndarray, leg: int, offsets: np.ndarray) -> np.ndarray:
-    """Leg `leg` of the frames `out` (R, n, 22, 3) re-solved for its ankle moved horizontally by
-    `offsets` (R, n, 2) (in place; `decoded`: the frames as they came); returns (R, n) the frames
-    whose shin-foot angle ended narrower than ankle_room allows, and the frame on each side."""
-    hip, knee, ankle, toe = LEGS[leg]
-    moved = np.nonzero(offsets.any(axis=-1))  # frames left alone keep their exact pose
-    out[..., [hip, knee, ankle, toe], :] = decoded[..., [hip, knee, ankle, toe], :]
-    bent = np.zeros(offsets.shape[:2], dtype=bool)
-    if not len(moved[0]):
+def _re_solve(out: np.ndarray, decoded: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """The legs of the frames `out` (R, n, 22, 3) re-solved for their ankles moved horizontally by
+    `offsets` (R, n, legs, 2) (in place; `decoded`: the frames as they came; one IK call for every
+    leg, which reads and writes only its own joints); returns (R, n, legs) the frames whose
+    shin-foot angle ended narrower than ankle_room allows, and the frame on each side."""
+    chains = np.asarray(LEGS)  # (legs, 4) hip, knee, ankle, toe
+    out[..., chains.reshape(-1), :] = decoded[..., chains.reshape(-1), :]  # frames left alone: exact
+    bent = np.zeros(offsets.shape[:3], dtype=bool)
+    r, t, leg = np.nonzero(offsets.any(axis=-1))
+    if not len(r):
         return bent
-    frames = decoded[moved]
-    goal = frames[:, ankle].copy()
-    goal[:, [0, 2]] += offsets[moved]
-    goal = soft_reach(frames[:, hip], frames[:, knee], frames[:, ankle], goal)
-    toes = frames[:, toe] - frames[:, ankle]
+    chain = chains[leg]  # (M, 4)
+    hip, knee, ankle, toe = (decoded[r, t, chain[:, j]] for j in range(4))
+    goal = ankle.copy()
+    goal[:, [0, 2]] += offsets[r, t, leg]
+    goal = soft_reach(hip, knee, ankle, goal)
+    toes = toe - ankle
     toes[:, 1] = 0.0  # a knee points the way the foot does
-    new_knee, new_ankle = two_bone_ik(
-        frames[:, hip], frames[:, knee], frames[:, ankle], goal, toes, hint_length=TOE_HINT_LENGTH
-    )
-    new_toe = frames[:, toe] + new_ankle - frames[:, ankle]
-    out[moved + (knee,)], out[moved + (ankle,)], out[moved + (toe,)] = new_knee, new_ankle, new_toe
-    floor = np.minimum(_shin_foot_angle(frames[:, knee], frames[:, ankle], frames[:, toe]), ANKLE_MIN_ANGLE)
-    bent[moved] = _shin_foot_angle(new_knee, new_ankle, new_toe) < floor - ANKLE_TOLERANCE
+    new_knee, new_ankle = two_bone_ik(hip, knee, ankle, goal, toes, hint_length=TOE_HINT_LENGTH)
+    new_toe = toe + new_ankle - ankle
+    out[r, t, chain[:, 1]], out[r, t, chain[:, 2]], out[r, t, chain[:, 3]] = new_knee, new_ankle, new_toe
+    floor = np.minimum(_shin_foot_angle(knee, ankle, toe), ANKLE_MIN_ANGLE)
+    bent[r, t, leg] = _shin_foot_angle(new_knee, new_ankle, new_toe) < floor - ANKLE_TOLERANCE
     bent[:, 1:] |= bent[:, :-1].copy()
     bent[:, :-1] |= bent[:, 1:].copy()
     return bent
