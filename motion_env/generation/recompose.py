@@ -165,6 +165,7 @@ def on_bone_lengths(joints: np.ndarray) -> np.ndarray:
     out = fit_bone_lengths(joints).astype(np.float64)
     shape = out.shape
     flat, dec = out.reshape(-1, shape[-2], 3), decoded.reshape(-1, shape[-2], 3)
+    chains, goals, hints = [], [], []
     for shoulder, elbow, wrist in ARMS:
         length = np.linalg.norm(flat[:, elbow] - flat[:, shoulder], axis=-1) + np.linalg.norm(
             flat[:, wrist] - flat[:, elbow], axis=-1
@@ -173,7 +174,7 @@ def on_bone_lengths(joints: np.ndarray) -> np.ndarray:
             dec[:, wrist] - dec[:, elbow], axis=-1
         )
         scale = np.clip(length / np.maximum(decoded_length, 1e-9), 1.0 / ARM_SCALE, ARM_SCALE)
-        goal = flat[:, shoulder] + (dec[:, wrist] - dec[:, shoulder]) * scale[:, None]
+        goals.append(flat[:, shoulder] + (dec[:, wrist] - dec[:, shoulder]) * scale[:, None])
         # An arm the decoder holds straight but short has no bend of its own to keep: its elbow
         # bends back and out (a 1 cm bias), rather than to whichever side noise puts it.
         outward = flat[:, shoulder] - flat[:, ARMS[1 - ARMS.index((shoulder, elbow, wrist))][0]]
@@ -181,15 +182,22 @@ def on_bone_lengths(joints: np.ndarray) -> np.ndarray:
         back = np.cross(outward, [0.0, 1.0, 0.0]) * (-1.0 if shoulder == ARMS[0][0] else 1.0)
         hint = back / np.maximum(np.linalg.norm(back, axis=-1, keepdims=True), 1e-9)
         hint += 0.5 * outward / np.maximum(np.linalg.norm(outward, axis=-1, keepdims=True), 1e-9)
-        # A decoded arm much shorter than the skeleton's but held straight (both bones at half
-        # length as a hand is thrown up) must bend far to keep the wrist where it was decoded:
-        # its own bend is noise, which flipped the elbow from one side to the other between
-        # frames (250 m/s^2). ARM_BEND_FILL grows the bias with the bend it needs and does not
-        # show, so such an arm bends back and out.
-        flat[:, elbow], flat[:, wrist] = two_bone_ik(
-            flat[:, shoulder], flat[:, elbow], flat[:, wrist], goal, hint,
-            hint_weight=ARM_BEND_HINT, hint_fill=ARM_BEND_FILL,
-        )  # fmt: skip
+        hints.append(hint)
+        chains.append((shoulder, elbow, wrist))
+    # A decoded arm much shorter than the skeleton's but held straight (both bones at half
+    # length as a hand is thrown up) must bend far to keep the wrist where it was decoded: its own
+    # bend is noise, which flipped the elbow from one side to the other between frames (250
+    # m/s^2). ARM_BEND_FILL grows the bias with the bend it needs and does not show, so such an
+    # arm bends back and out. Both arms in one IK call (each reads and writes its own elbow and
+    # wrist; the IK is per frame).
+    shoulders, elbows, wrists = (np.concatenate([flat[:, c[j]] for c in chains]) for j in range(3))
+    new_elbow, new_wrist = two_bone_ik(
+        shoulders, elbows, wrists, np.concatenate(goals), np.concatenate(hints),
+        hint_weight=ARM_BEND_HINT, hint_fill=ARM_BEND_FILL,
+    )  # fmt: skip
+    n = len(flat)
+    for k, (_, elbow, wrist) in enumerate(chains):
+        flat[:, elbow], flat[:, wrist] = new_elbow[k * n : (k + 1) * n], new_wrist[k * n : (k + 1) * n]
     return flat.reshape(shape).astype(np.float32)
 
 
