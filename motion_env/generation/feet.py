@@ -252,11 +252,11 @@ class FootPinner:
         saved = [a[rows].copy() for a in fields]
         check = np.zeros(flags.shape[:2] + (len(LEGS),), dtype=bool)
         # Frames whose leg bends too far at the ankle (rare: a jump's crouch) are done again, each
-        # pin giving way there as far as ankle_room asks, until no new ones appear. The legs are
-        # pinned together and re-solved one by one; each leg's passes are its own (a leg done
-        # again from the saved state with the checks it had gives what it gave).
-        for n in range(_ANKLE_PASSES):
-            if n:
+        # pin giving way there as far as ankle_room asks, until no new ones appear. The legs go
+        # together, yet each leg's passes are its own: a leg done again from the saved state with
+        # the checks it had gives what it gave.
+        for attempt in range(_ANKLE_PASSES):
+            if attempt:
                 for a, state in zip(fields, saved, strict=True):
                     a[rows] = state
             offsets = self._pin(rows, decoded, flags, check)  # (R, n, legs, 2)
@@ -265,7 +265,7 @@ class FootPinner:
             if not new.any():
                 break
             check |= bent
-            if n == _ANKLE_PASSES - 1:  # out of passes: a leg still bending keeps its state from before
+            if attempt == _ANKLE_PASSES - 1:  # out of passes: a leg still bending keeps its state from before
                 for a, state in zip(fields, saved, strict=True):
                     a[rows[:, None], np.nonzero(new)[0]] = state[:, new]
         return out.astype(np.float32)

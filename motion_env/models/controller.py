@@ -393,33 +393,24 @@ class PathController(nn.Module):
         ops = self._ops(state.pos.shape[0])
         weights = ops.weights(self._weights())
         const = ops.constants(c.step_scale, c.turn_scale, state.pos.dtype)
-        text = ops.array(self._text_features(state.text))
         pos, theta, vel, hidden = (ops.array(x) for x in (state.pos, state.theta, state.vel, state.hidden))
         queue = state.queue
         frames = ops.array(
             (state.frame.unsqueeze(1) + torch.arange(num_steps + 1, device=state.frame.device)).float()
         )
-        roots, poss, thetas, vels, hiddens, queues = [], [], [], [], [], []
-        # With gradients each frame's root is made as the frame ends (the order in which the
-        # gradients are summed stays that of stepping frame by frame); without, all at the end.
+        # With gradients each frame's root (and captions' projection) is made as the frame goes (the
+        # order in which the gradients are summed stays that of stepping frame by frame); without,
+        # the projection once and the roots all at the end.
         grad = torch.is_grad_enabled()
+        text = None if grad else ops.array(self._text_features(state.text))
+        roots, poss, thetas, vels, hiddens, queues = [], [], [], [], [], []
         view = due = None
         for n in range(num_steps + 1):
             if n:
-                moved = n >= due
-                if not moved and view.any_near:
-                    near = ops.norm(view.xy[:, 0] - ops.detach(pos)) < c.arrive_radius
-                    moved = bool((near & view.near).any())
-                if moved:
+                if self._passed(ops, view, due, n, pos):
                     frame = state.frame + n
-                    queue = next_queue(
-                        state.waypoints,
-                        state.count,
-                        queue,
-                        ops.tensor(pos, state.pos),
-                        frame,
-                        c.arrive_radius,
-                    )
+                    pos_t = ops.tensor(pos, state.pos)
+                    queue = next_queue(state.waypoints, state.count, queue, pos_t, frame, c.arrive_radius)
                     view = None
                 if grad:
                     roots.append(torch.cat([pos, theta.unsqueeze(1)], dim=-1))
@@ -432,45 +423,43 @@ class PathController(nn.Module):
                     queues.append(queue)
             if n == num_steps:
                 break
-            frame = frames[:, n : n + 1]  # (B, 1)
             if view is None:
                 torch_view = route_view(state.waypoints, state.count, queue, c.num_slots)
                 # The earliest step at which some character's timed target is due (frames are
                 # whole numbers, so the comparison is exact in float64).
                 due = n + (torch_view.due.double() - (state.frame + n).double()).min().item()
                 view = ops.view(torch_view)
-            if grad:  # a projection per frame: the gradients sum in the order of stepping frame by frame
-                text = self._text_features(state.text)
+            captions = self._text_features(state.text) if grad else text
             pos, theta, vel, hidden = self._frame(
-                ops, weights, const, text, view, pos, theta, vel, hidden, frame
+                ops, weights, const, captions, view, pos, theta, vel, hidden, frames[:, n : n + 1]
             )
-        frame = state.frame + num_steps
-        like = state.pos
+        ends = dict(zip(("pos", "theta", "vel", "hidden"), (pos, theta, vel, hidden), strict=True))
         new = replace(
             state,
-            pos=ops.tensor(pos, like),
-            theta=ops.tensor(theta, like),
-            vel=ops.tensor(vel, like),
-            hidden=ops.tensor(hidden, like),
-            frame=frame,
+            **{k: ops.tensor(v, state.pos) for k, v in ends.items()},
+            frame=state.frame + num_steps,
             queue=queue,
         )
         if not num_steps:
             return new, Trace(roots=state.pos.new_zeros((state.pos.shape[0], 0, 3)))
         if grad:
-            out = Trace(roots=torch.stack(roots, dim=1))
+            roots = torch.stack(roots, dim=1)
         else:
-            out = Trace(
-                roots=ops.tensor(ops.cat([ops.stack(poss, 1), ops.stack(thetas, 1)[..., None]], -1), like)
-            )
-        if trace:
-            out = Trace(
-                out.roots,
-                ops.tensor(ops.stack(vels, 1), like),
-                ops.tensor(ops.stack(hiddens, 1), like),
-                torch.stack(queues, dim=1),
-            )
-        return new, out
+            roots = ops.tensor(ops.cat([ops.stack(poss, 1), ops.stack(thetas, 1)[..., None]], -1), state.pos)
+        if not trace:
+            return new, Trace(roots=roots)
+        vel, hidden = (ops.tensor(ops.stack(x, 1), state.pos) for x in (vels, hiddens))
+        return new, Trace(roots, vel, hidden, torch.stack(queues, dim=1))
+
+    def _passed(self, ops: TorchOps, view: RouteView, due: float, n: int, pos: Array) -> bool:
+        """Whether some character passes its current target at step `n` of a roll-out: a timed one
+        by its frame (`due`, the earliest), an untimed one by coming within the arrive radius."""
+        if n >= due:
+            return True
+        if not view.any_near:
+            return False
+        near = ops.norm(view.xy[:, 0] - ops.detach(pos)) < self.config.arrive_radius
+        return bool((near & view.near).any())
 
     def step(self, state: ControllerState) -> ControllerState:
         """Advance every character by one frame; returns the new state (its ``root`` is the new frame)."""

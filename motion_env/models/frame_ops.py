@@ -6,7 +6,7 @@ arrays, so that one implementation of the frame (:meth:`PathController._frame
 Torch trains the controller (gradients) and runs it on any device. A roll-out without gradients on
 the CPU runs on numpy: a frame at batch 1 is some sixty operations on a few hundred numbers, where
 torch's per-operation cost (a few microseconds) is most of the frame and numpy's is a third of it
-(the roll-out of a 200-frame clip, 216 frames: 124 -> 62 ms on the 2-core development CPU, one
+(the roll-out of a 200-frame clip, 216 frames: 131 -> 69 ms on the 2-core development CPU, one
 thread). The two agree to float32 rounding (``tests/models/test_frame_ops.py``); the numpy side
 holds the weights transposed, the layout a one-row product reads fastest.
 """
@@ -40,14 +40,9 @@ class Constants(NamedTuple):
     turn_scale: Any
 
 
-def _values(step_scale: float, turn_scale: float) -> tuple[float, ...]:
-    return (0.5, 0.25, float(FPS), step_scale, turn_scale)
-
-
 class TorchOps:
-    """The frame's operations on torch tensors (training, any device)."""
-
-    name = "torch"
+    """The frame's operations on torch tensors (training, any device). Axes are passed by
+    position (torch's `dim`, numpy's `axis`)."""
 
     def __init__(self) -> None:
         self._constants: dict[tuple[float, float, torch.dtype], Constants] = {}
@@ -55,19 +50,19 @@ class TorchOps:
     def constants(
         self, step_scale: float, turn_scale: float, dtype: torch.dtype = torch.float32
     ) -> Constants:
+        """The :class:`Constants` of a controller's step and turn scales (made once per dtype)."""
         key = (step_scale, turn_scale, dtype)
         if key not in self._constants:
-            values = _values(step_scale, turn_scale)
-            self._constants[key] = Constants(*(torch.tensor(v, dtype=dtype) for v in values))
+            values = (0.5, 0.25, float(FPS), step_scale, turn_scale)
+            self._constants[key] = Constants(*(self._scalar(v, dtype) for v in values))
         return self._constants[key]
 
     @staticmethod
-    def cat(xs: list[Array], axis: int) -> Array:
-        return torch.cat(xs, dim=axis)
+    def _scalar(value: float, dtype: torch.dtype) -> Any:
+        return torch.tensor(value, dtype=dtype)
 
-    @staticmethod
-    def stack(xs: list[Array], axis: int) -> Array:
-        return torch.stack(xs, dim=axis)
+    cat = staticmethod(torch.cat)
+    stack = staticmethod(torch.stack)
 
     @staticmethod
     def norm(x: Array) -> Array:
@@ -111,24 +106,17 @@ class TorchOps:
 class NumpyOps(TorchOps):
     """The frame's operations on float32 numpy arrays (inference on the CPU)."""
 
-    name = "numpy"
     _SQRT1_2 = np.float32(1.0 / math.sqrt(2.0))
 
     def __init__(self) -> None:
-        self._constants_np: dict[tuple[float, float], Constants] = {}
+        super().__init__()
         self._weights: tuple[tuple[int, ...], tuple[np.ndarray, ...]] | None = None
 
-    def constants(
-        self, step_scale: float, turn_scale: float, dtype: torch.dtype = torch.float32
-    ) -> Constants:
-        key = (step_scale, turn_scale)
-        if key not in self._constants_np:
-            self._constants_np[key] = Constants(*(np.float32(v) for v in _values(step_scale, turn_scale)))
-        return self._constants_np[key]
-
     @staticmethod
-    def cat(xs: list[Array], axis: int) -> Array:
-        return np.concatenate(xs, axis=axis)
+    def _scalar(value: float, dtype: torch.dtype) -> Any:
+        return np.float32(value)  # the arrays are float32 whatever the state's dtype
+
+    cat = staticmethod(np.concatenate)
 
     @staticmethod
     def stack(xs: list[Array], axis: int) -> Array:

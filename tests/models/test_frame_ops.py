@@ -41,25 +41,15 @@ def test_numpy_operations_equal_torch_ones() -> None:
     assert _close(NP.stack([x.numpy(), x.numpy() * 2], -1), TORCH.stack([x, x * 2], -1))
 
 
-def _routes(rng: np.random.Generator, batch: int) -> list[np.ndarray | None]:
-    """Every kind of route: none, untimed, timed, mixed, and a short timed one the character
-    reaches early (the arrive gating)."""
-    out: list[np.ndarray | None] = []
-    for i in range(batch):
-        k = int(rng.integers(2, 6))
-        pts = np.cumsum(rng.normal(scale=1.5, size=(k, 2)), 0).astype(np.float32)
-        times = np.cumsum(rng.integers(15, 40, size=k)).astype(np.float32)[:, None]
-        kind = (i + 4) % 5  # one character: the short timed route
-        if kind == 0:
-            out.append(None)
-        elif kind == 1:
-            out.append(pts)
-        else:
-            wp = np.concatenate([pts * (0.2 if kind == 4 else 1.0), times], 1)
-            if kind == 3:
-                wp[::2, 2] = np.nan
-            out.append(wp)
-    return out
+# Every kind of route, the first a short timed one whose last waypoint comes early (the arrive
+# gating runs), then none, untimed, timed and mixed.
+ROUTES = [
+    np.array([[0.3, 0.5, 25.0], [0.2, 0.9, 50.0]], np.float32),
+    None,
+    np.array([[1.0, 2.5], [3.0, 4.0], [5.5, 3.0]], np.float32),
+    np.array([[0.0, 2.0, 40.0], [2.0, 4.0, 90.0], [4.0, 4.5, 140.0]], np.float32),
+    np.array([[-1.0, 2.0, 30.0], [-2.5, 3.5, np.nan], [-4.0, 3.0, 120.0]], np.float32),
+]
 
 
 @pytest.mark.parametrize("batch", [1, 5])
@@ -71,7 +61,7 @@ def test_a_numpy_roll_out_equals_the_torch_one(batch: int) -> None:
     starts = rng.normal(size=(batch, 3)).astype(np.float32)
     with torch.no_grad():
         state = model.init_state(
-            torch.randn(batch, 32), _routes(rng, batch), starts, generator=torch.Generator().manual_seed(0)
+            torch.randn(batch, 32), ROUTES[:batch], starts, generator=torch.Generator().manual_seed(0)
         )
         assert model._ops(batch) is model._numpy
         new, trace = model.run(state, 150, trace=True)
