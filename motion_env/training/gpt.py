@@ -54,6 +54,9 @@ class GPTTrainConfig(TrainConfig):
     # share drawn per sequence, its pkeep = -1, was its better setting on the smaller KIT-ML).
     token_keep: Annotated[float, "(0, 1]"] = 1.0  # share of input tokens kept (1: no corruption)
     token_keep_random: bool = False  # instead, each crop keeps a share drawn uniformly in [0, 1]
+    # Each train clip is also tokenised from its 2nd, 3rd, ... frame (up to the VQ-VAE's rate):
+    # the same motion cut into tokens at other phases, as many more token sequences to learn from.
+    token_offsets: PositiveInt = 1  # phases each train clip is tokenised at (1: from its first frame only)
     encoder: str = DEFAULT_TEXT_ENCODER  # text encoder name (motion_env.text.load_text_encoder)
     init: str | None = None  # GPT checkpoint (packaged ones too) a fresh run starts from: weights, config
 
@@ -64,32 +67,41 @@ class GPTTrainConfig(TrainConfig):
 
 
 class _TokenSet:
-    """Every clip of a split as tokens + per-token path features + caption indices."""
+    """Every clip of a split as tokens + per-token path features + caption indices; with
+    `offsets` > 1 each clip also from its frames 1, 2, ... (one entry per phase)."""
 
-    def __init__(self, clips: list[Any], vq: VQVAE, normalizer: Normalizer, device: Any) -> None:
+    def __init__(
+        self, clips: list[Any], vq: VQVAE, normalizer: Normalizer, device: Any, offsets: int = 1
+    ) -> None:
         from motion_env.models.path_features import token_path_features
         from motion_env.motion.trajectory import gait_free_path, root_path_from_joints
 
         rate = vq.rate
+        if not 1 <= offsets <= rate:
+            raise ValueError(
+                f"token offsets must be 1 ... {rate} (the VQ-VAE's frames per token), got {offsets}"
+            )
         self.codes: list[torch.Tensor] = []
         self.path: list[torch.Tensor] = []
         self.captions: list[list[str]] = []
         self.names: list[str] = []
         for clip in clips:
-            feats = np.asarray(clip.features, np.float32)
-            n = feats.shape[0] // rate
-            if n < 2 or not clip.captions:
+            if not clip.captions:
                 continue
-            x = torch.from_numpy(normalizer.normalize(feats[: n * rate]))[None].to(
-                device
-            )  # (1, n * rate, 263)
-            self.codes.append(vq.encode(x)[0].cpu())
             # The generator's paths come from the path controller, which has no gait in them.
-            path = gait_free_path(root_path_from_joints(np.asarray(clip.joints, np.float32)))
-            pf = token_path_features(path, rate)
-            self.path.append(torch.from_numpy(pf[:n]))
-            self.captions.append(list(clip.captions))
-            self.names.append(clip.name)
+            whole = gait_free_path(root_path_from_joints(np.asarray(clip.joints, np.float32)))
+            for o in range(offsets):
+                feats = np.asarray(clip.features[o:], np.float32)
+                n = feats.shape[0] // rate
+                if n < 2:
+                    continue
+                x = torch.from_numpy(normalizer.normalize(feats[: n * rate]))[None].to(
+                    device
+                )  # (1, n * rate, 263)
+                self.codes.append(vq.encode(x)[0].cpu())
+                self.path.append(torch.from_numpy(token_path_features(whole[o:], rate)[:n]))
+                self.captions.append(list(clip.captions))
+                self.names.append(clip.name if o == 0 else f"{clip.name}@{o}")
         if not self.codes:
             raise ValueError("no clip with at least two tokens and a caption")
         self.lengths = np.array([c.shape[0] for c in self.codes])  # tokens per clip
@@ -204,7 +216,7 @@ def train_gpt(
         model_config = config_from_dict(GPTConfig, init["config"])
     model_config = _model_config(model_config, vq, text_encoder)
     normalizer = loop.load_normalizer(data_dir)
-    train = _TokenSet(loop.load_split(data_dir, "train"), vq, normalizer, device)
+    train = _TokenSet(loop.load_split(data_dir, "train"), vq, normalizer, device, config.token_offsets)
     val = _TokenSet(loop.load_split(data_dir, "val"), vq, normalizer, device)
     table, caption_row = _embed_captions(text_encoder, [train, val])
 

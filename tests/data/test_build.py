@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 import gzip
+import json
+import subprocess
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 
 from motion_env import motion as mmath
 from motion_env.cli import main
@@ -278,3 +282,96 @@ def test_real_bandai_and_cmu_files(tmp_path: Path, require_data: Callable[[str],
     heading = np.unwrap(mmath.heading_from_joints(turn.joints))
     assert np.degrees(heading[-1] - heading[0]) > 60  # walk-turn-left turns left (+θ)
     assert any("walk" in c for c in clips["cmu_02_01"].captions)
+
+
+# --- scripts/pack_takes.py and scripts/train_vqvae_runs.py: a built dataset sent to a lent GPU ---
+
+SCRIPTS = Path(__file__).resolve().parents[2] / "scripts"
+
+
+def _script(name: str, *args: str, check: bool = True) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, str(SCRIPTS / name), *args], capture_output=True, text=True, timeout=300, check=check
+    )
+
+
+@pytest.fixture(scope="module")
+def unpacked(built: tuple[Path, object], tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    built_dir, folder = built[0], tmp_path_factory.mktemp("pack")
+    pack = folder / "takes.npz"
+    _script(
+        "pack_takes.py",
+        "pack",
+        "--data",
+        str(built_dir),
+        "--splits",
+        "train,val,test",
+        "--out",
+        str(pack),
+        "--workers",
+        "1",
+    )
+    _script("pack_takes.py", "unpack", str(pack), "--out", str(folder / "mocap"), "--workers", "1")
+    return pack, folder / "mocap"
+
+
+def test_a_pack_unpacks_into_the_dataset_it_was_made_from(
+    built: tuple[Path, object], unpacked: tuple[Path, Path]
+) -> None:
+    built, (_, out) = built[0], unpacked
+    _, std = load_stats(built)
+    for split in ("train", "val", "test"):
+        assert (out / f"{split}.txt").read_text().split() == (built / f"{split}.txt").read_text().split()
+        for a, b in zip(read_split(out, split), read_split(built, split), strict=True):
+            assert a.name == b.name and a.captions == b.captions
+            assert a.features.shape == b.features.shape
+            assert np.abs((a.features - b.features) / std).max() < 1e-2, a.name
+    for name in ("Mean.npy", "Std.npy"):
+        np.testing.assert_array_equal(np.load(out / name), np.load(built / name))
+
+
+def test_check_compares_and_unpack_never_overwrites(
+    built: tuple[Path, object], unpacked: tuple[Path, Path]
+) -> None:
+    built, (pack, out) = built[0], unpacked
+    assert "largest difference" in _script("pack_takes.py", "check", str(pack), "--data", str(built)).stdout
+    again = _script("pack_takes.py", "unpack", str(pack), "--out", str(out), check=False)
+    assert again.returncode != 0 and "not empty" in again.stderr
+    exists = _script("pack_takes.py", "pack", "--data", str(built), "--out", str(pack), check=False)
+    assert exists.returncode != 0 and "exists" in exists.stderr
+
+
+def test_side_by_side_runs_are_exported_as_they_would_ship(
+    unpacked: tuple[Path, Path], tmp_path: Path
+) -> None:
+    _, data = unpacked
+    tiny = {"width": 16, "code_dim": 8, "codebook_size": 16, "batch_size": 2, "window": 8, "read_weight": 1.0}
+    runs = [f"a={json.dumps(tiny)}", f"b={json.dumps({**tiny, 'lr': 1e-3})}"]
+    args = [
+        "--data",
+        str(data),
+        "--device",
+        "cpu",
+        "--budget",
+        "5",
+        "--steps",
+        "3",
+        "--work",
+        str(tmp_path / "work"),
+    ]
+    _script(
+        "train_vqvae_runs.py", *args, "--out", str(tmp_path / "out"), *[x for r in runs for x in ("--run", r)]
+    )
+    record = json.loads((tmp_path / "out" / "runs.json").read_text())
+    for name in ("a", "b"):
+        assert (
+            record["runs"][name]["final"]["step"] == 3
+            and "val_mpjpe_local_cm" in record["runs"][name]["final"]
+        )
+        ckpt = torch.load(tmp_path / "out" / f"{name}.pt", weights_only=True)
+        assert "optimizer" not in ckpt and ckpt["config"]["width"] == 16
+        assert all(t.dtype == torch.float16 for t in ckpt["model"].values() if t.is_floating_point())
+    bad = _script(
+        "train_vqvae_runs.py", *args, "--out", str(tmp_path / "bad"), "--run", 'a={"widht": 8}', check=False
+    )
+    assert bad.returncode != 0 and "widht" in bad.stderr

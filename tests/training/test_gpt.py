@@ -111,3 +111,24 @@ def test_corrupted_inputs_keep_their_share_and_the_start() -> None:
     assert int(out[:, 1:].max()) < 64  # random tokens are motion tokens
     with pytest.raises(ValueError, match="token_keep"):
         GPTTrainConfig(token_keep=0.0)
+
+
+def test_train_clips_tokenised_at_every_phase(tiny_dataset: Path, vqvae: Path) -> None:
+    from motion_env.data.dataset import load_stats, read_split
+    from motion_env.models.normalizer import Normalizer
+    from motion_env.models.vqvae import VQVAE
+    from motion_env.training.gpt import _TokenSet
+
+    vq, _ = load_checkpoint(vqvae, "vqvae", VQVAEConfig, VQVAE)
+    clips, norm = read_split(tiny_dataset, "train"), Normalizer(*load_stats(tiny_dataset))
+    one, four = _TokenSet(clips, vq, norm, "cpu"), _TokenSet(clips, vq, norm, "cpu", offsets=4)
+    assert len(four) == 4 * len(one) and four.names[:4] == [one.names[0]] + [
+        f"{one.names[0]}@{o}" for o in (1, 2, 3)
+    ]
+    # Phase o is the clip from its frame o: its tokens are those of the features cut there.
+    feats = clips[0].features[2:]
+    n = len(feats) // vq.rate
+    x = torch.from_numpy(norm.normalize(np.asarray(feats[: n * vq.rate], np.float32)))[None]
+    assert torch.equal(four.codes[2], vq.encode(x)[0]) and four.path[2].shape == (n, one.path[0].shape[1])
+    with pytest.raises(ValueError, match="token offsets must be 1 ... 4"):
+        _TokenSet(clips, vq, norm, "cpu", offsets=5)
