@@ -353,9 +353,7 @@ def test_side_by_side_runs_are_exported_as_they_would_ship(
         "--device",
         "cpu",
         "--budget",
-        "5",
-        "--steps",
-        "3",
+        "0.2",
         "--work",
         str(tmp_path / "work"),
     ]
@@ -365,8 +363,9 @@ def test_side_by_side_runs_are_exported_as_they_would_ship(
     record = json.loads((tmp_path / "out" / "runs.json").read_text())
     for name in ("a", "b"):
         assert (
-            record["runs"][name]["final"]["step"] == 3
+            record["runs"][name]["final"]["step"] == 40  # the budget is spent: the probe's steps
             and "val_mpjpe_local_cm" in record["runs"][name]["final"]
+            and record["runs"][name]["probe_seconds_per_step"] > 0
         )
         ckpt = torch.load(tmp_path / "out" / f"{name}.pt", weights_only=True)
         assert "optimizer" not in ckpt and ckpt["config"]["width"] == 16
