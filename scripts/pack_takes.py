@@ -30,8 +30,8 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from motion_env import motion as mmath
-from motion_env.data.dataset import MIRROR_PREFIX, load_stats, read_index
+from motion_env.data.dataset import load_stats, read_index
+from motion_env.data.jobs import clip_arrays
 from motion_env.io.bvh import load_bvh
 
 QUANTUM_M = 1e-5  # positions are stored to this (0.01 mm): far below the capture's own precision
@@ -110,13 +110,8 @@ def read_pack(
 
 
 def _features(item: tuple[str, np.ndarray]) -> list[tuple[str, np.ndarray, np.ndarray]]:
-    """A take's clip and its mirror's, as `motion_env.data.jobs.run_job` writes them."""
-    name, joints = item
-    rows = []
-    for clip, j in ((name, joints), (MIRROR_PREFIX + name, mmath.mirror(joints))):
-        features = mmath.joints_to_features(j, floor=False).astype(np.float32)
-        rows.append((clip, features, mmath.features_to_joints(features).astype(np.float32)))
-    return rows
+    """A take's clip and its mirror's, as a build writes them."""
+    return [(clip, f.astype(np.float32), j.astype(np.float32)) for clip, f, j in clip_arrays(*item)]
 
 
 def unpack(path: Path, out: Path, workers: int) -> None:

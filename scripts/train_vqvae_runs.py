@@ -23,16 +23,19 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import multiprocessing as mp
-import subprocess
+import os
 import sys
+import tempfile
 import threading
 import time
 import traceback
 from pathlib import Path
 from typing import Any
 
-HERE = Path(__file__).resolve().parent
+from pack_takes import unpack  # this folder's: the script's own folder is on sys.path
+
 RECIPE: dict[str, Any] = {
     "window": 48, "lr": 4e-4, "vel_weight": 0.5, "acc_weight": 1.0, "jerk_weight": 0.5,
     "smooth_joints": "upper", "read_weight": 4.0, "seed": 11, "width": 256,
@@ -127,8 +130,9 @@ def main(argv: list[str] | None = None) -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--data", type=Path, help="a HumanML3D-layout dataset folder")
-    parser.add_argument("--pack", type=Path, help="a pack of scripts/pack_takes.py, unpacked to --unpack-to")
-    parser.add_argument("--unpack-to", type=Path, default=Path("/tmp/mocap_unpacked"))
+    parser.add_argument(
+        "--pack", type=Path, help="a pack of scripts/pack_takes.py (unpacked to a new temp folder)"
+    )
     parser.add_argument("--run", action="append", required=True, help="NAME=JSON settings over the recipe")
     parser.add_argument("--device", default="cuda")
     parser.add_argument("--budget", type=float, required=True, help="minutes for the whole script")
@@ -139,7 +143,6 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     t0 = time.time()
-    deadline = t0 + args.budget * 60
     runs: dict[str, dict[str, Any]] = {}
     for spec in args.run:
         name, _, text = spec.partition("=")
@@ -147,23 +150,19 @@ def main(argv: list[str] | None = None) -> int:
             raise SystemExit(f"--run {spec!r}: give each run a distinct name, NAME=JSON")
         runs[name] = {**RECIPE, **json.loads(text or "{}")}
         _configs(runs[name], args.device)  # a bad setting is reported before any work
-    data = args.data
-    if data is None:
-        if args.pack is None:
-            raise SystemExit("give --data or --pack")
-        if not (args.unpack_to / "train.txt").is_file():
-            cmd = [
-                sys.executable,
-                str(HERE / "pack_takes.py"),
-                "unpack",
-                str(args.pack),
-                "--out",
-                str(args.unpack_to),
-                "--workers",
-                "16",
-            ]
-            subprocess.run(cmd, check=True)
-        data = args.unpack_to
+    if args.data is not None:
+        _train_all(args, args.data, runs, t0)
+    elif args.pack is None:
+        raise SystemExit("give --data or --pack")
+    else:
+        with tempfile.TemporaryDirectory(prefix="mocap_unpacked_") as folder:
+            unpack(args.pack, Path(folder), workers=os.cpu_count() or 1)
+            _train_all(args, Path(folder), runs, t0)
+    return 0
+
+
+def _train_all(args: argparse.Namespace, data: Path, runs: dict[str, dict[str, Any]], t0: float) -> None:
+    """The probe, then every run side by side until ``t0 + args.budget`` minutes, exporting as they go."""
     print(f"data ready after {time.time() - t0:.0f} s", flush=True)
     args.work.mkdir(parents=True, exist_ok=True)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -179,12 +178,12 @@ def main(argv: list[str] | None = None) -> int:
             args.device,
         )
     )
-    left = deadline - time.time() - 45  # the last exports and the final evaluations
+    left = t0 + args.budget * 60 - time.time() - 45  # the last exports and the final evaluations
     record: dict[str, Any] = {"budget_min": args.budget, "runs": {}}
     for name, s in runs.items():
         per_step = probe.get(name, {}).get("seconds_per_step", float("nan"))
         steps = args.steps or (
-            max(PROBE_STEPS, int(0.9 * left / per_step)) if per_step == per_step else PROBE_STEPS
+            PROBE_STEPS if math.isnan(per_step) else max(PROBE_STEPS, int(0.9 * left / per_step))
         )
         # max_minutes only guards the budget; a probe that took all of it still leaves a minute.
         runs[name] = {
@@ -221,7 +220,6 @@ def main(argv: list[str] | None = None) -> int:
     export_all()
     print(json.dumps({n: r.get("latest") for n, r in record["runs"].items()}, indent=1))
     print(f"done in {time.time() - t0:.0f} s", flush=True)
-    return 0
 
 
 if __name__ == "__main__":

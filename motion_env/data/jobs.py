@@ -35,13 +35,37 @@ class Job:
     out: str
 
 
+def clip_arrays(
+    name: str, joints: np.ndarray, mirror: bool = True
+) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """A take's clip (and its mirror ``M<name>``) as a build stores them: ``(name, features (T,
+    263), new_joints (T, 22, 3))``, from the (T + 1, 22, 3) joints :func:`motion_env.io.bvh.load_bvh` gave.
+
+    Raises:
+        ValueError: the features are not finite.
+    """
+    from motion_env import motion as mmath
+
+    variants = [(name, joints)]
+    if mirror:
+        variants.append((MIRROR_PREFIX + name, mmath.mirror(joints)))
+    arrays = []
+    for clip, j in variants:
+        # load_bvh has floored the clip robustly already; joints_to_features' own floor (the
+        # lowest joint of the whole clip) would let one bad frame lift everything.
+        features = mmath.joints_to_features(j, floor=False)
+        if not np.isfinite(features).all():
+            raise ValueError("features contain NaN or infinite values")
+        arrays.append((clip, features, mmath.features_to_joints(features)))
+    return arrays
+
+
 def run_job(job: Job) -> dict:
     """Import one file and write its clip (and mirror). Runs in a worker process.
 
     Returns ``{"name", "status": "ok" | "short" | "failed", "frames", "stats"}`` (``stats``:
     ``(n, mean, m2)`` of a train clip and its mirror, else None; ``reason`` when failed).
     """
-    from motion_env import motion as mmath
     from motion_env.io.bvh import load_bvh
 
     result: dict = {"name": job.name, "status": "ok", "frames": 0, "stats": None}
@@ -50,17 +74,7 @@ def run_job(job: Job) -> dict:
         if joints.shape[0] < job.min_frames:
             result.update(status="short", frames=int(joints.shape[0]))
             return result
-        variants = [(job.name, joints)]
-        if job.mirror:
-            variants.append((MIRROR_PREFIX + job.name, mmath.mirror(joints)))
-        arrays = []
-        for name, j in variants:
-            # load_bvh has floored the clip robustly already; joints_to_features' own floor (the
-            # lowest joint of the whole clip) would let one bad frame lift everything.
-            features = mmath.joints_to_features(j, floor=False)
-            if not np.isfinite(features).all():
-                raise ValueError("features contain NaN or infinite values")
-            arrays.append((name, features, mmath.features_to_joints(features)))
+        arrays = clip_arrays(job.name, joints, job.mirror)
         out = Path(job.out)
         stats = RunningStats()
         for name, features, new_joints in arrays:

@@ -344,12 +344,12 @@ def test_check_compares_and_unpack_never_overwrites(
 def test_side_by_side_runs_are_exported_as_they_would_ship(
     unpacked: tuple[Path, Path], tmp_path: Path
 ) -> None:
-    _, data = unpacked
+    pack, _ = unpacked  # the pack itself: unpacked by the script into a folder of its own
     tiny = {"width": 16, "code_dim": 8, "codebook_size": 16, "batch_size": 2, "window": 8, "read_weight": 1.0}
     runs = [f"a={json.dumps(tiny)}", f"b={json.dumps({**tiny, 'lr': 1e-3})}"]
     args = [
-        "--data",
-        str(data),
+        "--pack",
+        str(pack),
         "--device",
         "cpu",
         "--budget",
