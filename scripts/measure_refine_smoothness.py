@@ -22,8 +22,8 @@ with a low foot sliding, ``docs/metrics.md``) against the same walk without the 
 
 The refinement's settings can be changed with ``--set name=value``.
 
-    python scripts/measure_refine_smoothness.py --data data/mocap --takes 6
-    python scripts/measure_refine_smoothness.py --data data/mocap --takes 12 --split val
+    python scripts/measure_refine_smoothness.py --data data/mocap --takes 24
+    python scripts/measure_refine_smoothness.py --data data/mocap --takes 24 --split val
     python scripts/measure_refine_smoothness.py --data data/mocap --takes 6 --set spread=0
 """
 

@@ -27,13 +27,17 @@ a wrist correction fades as a turn about the shoulder and a change of reach (a s
 a folded arm's wrist passes by the shoulder, where the elbow swings); a head target is met by the
 pelvis height and a lean of the upper body about the pelvis (not by bending the nearly straight
 spine, whose middle swings with every centimetre the head's distance to the pelvis changes); the
-knees bend the way the body faces (not the toes, which turn as a foot lifts).
+knees bend the way the body faces (not the toes, which turn as a foot lifts); where a target swings
+a chain so far from the decoded one that the side its middle joint bent to flips, the flip is
+spread over the frames around it (:func:`_steady_poles`); a head target out of reach near the
+pelvis is leaned towards as if it were a spine's length away.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from scipy.linalg import solveh_banded
+from scipy.ndimage import gaussian_filter1d
 
 from motion_env.generation.feet import soft_limit
 from motion_env.motion.skeleton import JOINT_NAMES, LEGS, NUM_JOINTS
@@ -44,6 +48,7 @@ __all__ = [
     "smoothstep",
     "ARMS",
     "FADE",
+    "HEAD_DROP",
     "GAP",
     "MISS_TOLERANCE",
     "causal_field",
@@ -82,6 +87,11 @@ longer where its size needs it to stay under this acceleration (a smoothstep of 
 frames peaks at 6 D / F^2): a target a metre's sweep from the sampled wrist, faded over 10 frames,
 swung it at 115 m/s^2 (val: the largest controlled clip's acceleration over its starting clip's,
 2.49 -> 2.13x; 10 m/s^2 and 5 m/s^2 gave the same; test unchanged)."""
+POLE_TURN, POLE_SIGMA = 0.3, 2.0
+"""Radians a frame, frames: where a middle joint's bend plane turns about its chain faster than
+POLE_TURN from one frame to the next (a target that swings the chain far from the decoded one,
+where the side the joint bent to is poorly defined), the turn is spread over the frames around it
+by a Gaussian of POLE_SIGMA frames (:func:`_steady_poles`)."""
 HEAD_DROP, HEAD_RISE = 0.3, 0.03
 """Metres the pelvis goes down (up) at most so that a head target keeps the spine's length."""
 
@@ -235,6 +245,7 @@ def _two_bone(
     target: np.ndarray,
     hint: np.ndarray | None = None,
     soft: float = 0.0,
+    frames: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Two-bone IK per frame (root fixed, bone lengths kept, the end moved to `target`) whose middle
     joint moves as smoothly as the target: all (N, 3); returns (new middle, new end).
@@ -246,7 +257,9 @@ def _two_bone(
     end moves), blended between the FOLD openings. `hint` (e.g. the way the body faces) adds a
     5 cm bias, so a straight chain bends that way. Within `soft` metres of full extension, a
     target beyond where the end already was is reached softly (exponentially): the end stops a
-    few millimetres short rather than snapping the chain straight (0: exact, clamped).
+    few millimetres short rather than snapping the chain straight (0: exact, clamped). `frames`
+    (N,) int, the rows' frame numbers: rows of consecutive frames turn their bend plane no faster
+    than :func:`_steady_poles` allows.
     """
     l1 = np.linalg.norm(mid - root, axis=-1)
     l2 = np.linalg.norm(end - mid, axis=-1)
@@ -265,7 +278,9 @@ def _two_bone(
     bend = (mid - root) - ((mid - root) * axis0).sum(-1, keepdims=True) * axis0
     if hint is not None:
         bend = bend + 0.05 * hint / np.maximum(np.linalg.norm(hint, axis=-1, keepdims=True), 1e-9)
-    side = bend - (bend * u).sum(-1, keepdims=True) * u  # open: the side it bent to
+    # Open: the side it bent to. A chain swung far from the decoded one (a foot target past hip
+    # height) loses that side (it shrinks to nothing and flips); `frames` spreads such a flip.
+    side = bend - (bend * u).sum(-1, keepdims=True) * u
     near = (mid - root) - ((mid - root) * u).sum(-1, keepdims=True) * u  # folded: where it was
     side /= np.maximum(np.linalg.norm(side, axis=-1, keepdims=True), 1e-12)
     near /= np.maximum(np.linalg.norm(near, axis=-1, keepdims=True), 1e-12)
@@ -276,9 +291,44 @@ def _two_bone(
     fallback = (end - mid) - ((end - mid) * u).sum(-1, keepdims=True) * u
     pole = np.where(pole_n > 1e-6, pole / np.maximum(pole_n, 1e-12), fallback)
     pole /= np.maximum(np.linalg.norm(pole, axis=-1, keepdims=True), 1e-12)
+    if frames is not None:
+        pole = _steady_poles(pole, u, frames)
     a = (l1**2 - l2**2 + d**2) / (2 * d)
     h = np.sqrt(np.maximum(l1**2 - a**2, 0.0))
     return root + a[:, None] * u + h[:, None] * pole, root + d[:, None] * u
+
+
+def _steady_poles(pole: np.ndarray, axis: np.ndarray, frames: np.ndarray) -> np.ndarray:
+    """Unit bend directions `pole` (N, 3), each perpendicular to its chain's `axis` (N, 3), with
+    the turns faster than POLE_TURN a frame spread in time (rows of consecutive `frames` (N,)).
+
+    Each run of consecutive frames measures its poles' angle about the axis against a reference
+    carried from frame to frame (the last frame's reference, made perpendicular to the new axis),
+    unwraps it, and replaces it near the fast turns by its Gaussian average (POLE_SIGMA frames),
+    blended back to the pole as it was a few frames away from them.
+    """
+    out = pole.copy()
+    for run in np.split(np.arange(len(frames)), np.flatnonzero(np.diff(frames) != 1) + 1):
+        if len(run) < 3:
+            continue
+        p, ax = pole[run], axis[run]
+        ref = np.empty_like(p)
+        ref[0] = p[0]
+        for t in range(1, len(run)):
+            v = ref[t - 1] - (ref[t - 1] @ ax[t]) * ax[t]
+            n = np.linalg.norm(v)
+            ref[t] = v / n if n > 1e-9 else p[t]
+        across = np.cross(ax, ref)
+        theta = np.unwrap(np.arctan2((p * across).sum(-1), (p * ref).sum(-1)))
+        fast = np.zeros(len(run))
+        fast[1:] = np.abs(np.diff(theta)) > POLE_TURN
+        if not fast.any():
+            continue
+        fast[:-1] = np.maximum(fast[:-1], fast[1:])
+        near = np.clip(gaussian_filter1d(fast, POLE_SIGMA) * np.sqrt(2 * np.pi) * POLE_SIGMA, 0.0, 1.0)
+        angle = theta + near * (gaussian_filter1d(theta, POLE_SIGMA, mode="nearest") - theta)
+        out[run] = np.cos(angle)[:, None] * ref + np.sin(angle)[:, None] * across
+    return out
 
 
 def _rotvec(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -372,7 +422,14 @@ def _solve_spine(j: np.ndarray, targets: np.ndarray) -> None:
     if not len(rows):
         return
     p, h = j[rows, PELVIS], j[rows, HEAD]
-    lean = _shortest_arc(h - p, h + field[rows] - p)
+    # A target nearer the pelvis than the spine is long (lower than HEAD_DROP lets the pelvis go)
+    # is aimed at as if that much higher: near the pelvis its direction turns with every
+    # centimetre, and the upper body swung round the pelvis (260 m/s^2 at the head).
+    spine = h - p
+    aim = h + field[rows] - p
+    length = np.linalg.norm(spine, axis=1, keepdims=True)
+    short = np.maximum(length - np.linalg.norm(aim, axis=1, keepdims=True), 0.0)
+    lean = _shortest_arc(spine, aim + short * spine / np.maximum(length, 1e-9))
     for k in (*LOWER_SPINE, SPINE3, *UPPER_BODY):
         j[rows, k] = p + np.einsum("nij,nj->ni", lean, j[rows, k] - p)
 
@@ -412,7 +469,7 @@ def _solve_legs(
         # The leg as it was, carried along with its hip (so the IK reads the true bone lengths).
         carry = j[moved, hip] - before[moved, hip]
         knee0, ankle0 = before[moved, knee] + carry, before[moved, ankle] + carry
-        new_knee, new_ankle = _two_bone(j[moved, hip], knee0, ankle0, want[moved], facing, SOFT_LEG)
+        new_knee, new_ankle = _two_bone(j[moved, hip], knee0, ankle0, want[moved], facing, SOFT_LEG, moved)
         new_foot = before[moved, toe] - before[moved, ankle]
         both = has_ankle[moved] & has_toe[moved]
         if both.any():  # the foot turned towards its toe target, its length kept
@@ -451,7 +508,7 @@ def _solve_arms(j: np.ndarray, targets: np.ndarray, low: np.ndarray, high: np.nd
         turned = _rotate(rel[rows] / np.maximum(dist, 1e-9)[:, None], field[rows, :3])
         aim = j[rows, shoulder] + turned * (dist + field[rows, 3])[:, None]
         new_elbow, new_wrist = _two_bone(
-            j[rows, shoulder], j[rows, elbow], j[rows, wrist], aim, soft=SOFT_ARM
+            j[rows, shoulder], j[rows, elbow], j[rows, wrist], aim, soft=SOFT_ARM, frames=rows
         )
         j[rows, elbow], j[rows, wrist] = new_elbow, new_wrist
 

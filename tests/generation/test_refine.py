@@ -12,6 +12,7 @@ import torch
 
 from motion_env.generation.closed_form import (
     FADE,
+    HEAD_DROP,
     PLANT_WEIGHT,
     causal_field,
     residual_field,
@@ -244,6 +245,45 @@ def test_two_bone_moves_its_middle_joint_no_more_than_the_analytic_solve_and_rea
     jerk = np.linalg.norm(np.diff(new_mid, 2, axis=0), axis=1).max()
     assert jerk < 0.5 * np.linalg.norm(np.diff(old_mid, 2, axis=0), axis=1).max()
     assert 0.6 - 0.03 < np.linalg.norm(new_end[-1]) < 0.6
+
+
+def test_two_bone_spreads_a_flip_of_a_chain_swung_far_over_frames() -> None:
+    """A leg hanging down, knee bent forward, its foot raised frame by frame past hip height in
+    front (a climb): the side the knee bent to, measured against the new axis, vanishes as the leg
+    passes the horizontal and flips, and the knee swings to the other side in a frame. Given the
+    rows' frames, the flip is spread over the frames around it; the foot still meets its goal."""
+    from motion_env.generation.closed_form import _two_bone
+
+    n = 40
+    angle = np.linspace(0.0, 0.75 * np.pi, n)  # the leg's swing, from straight down to forward and up
+    root = np.zeros((n, 3))
+    mid = np.tile([0.0, -0.4, 0.05], (n, 1))  # knee a little forward (+z)
+    end = np.tile([0.0, -0.8, 0.0], (n, 1))
+    goal = 0.7 * np.stack([np.zeros(n), -np.cos(angle), np.sin(angle)], 1)
+    accel = {}
+    for frames in (None, np.arange(n)):
+        new_mid, new_end = _two_bone(root, mid, end, goal, soft=0.01, frames=frames)
+        np.testing.assert_allclose(new_end, goal, atol=1e-9)
+        np.testing.assert_allclose(np.linalg.norm(new_mid - root, axis=1), 0.4031, atol=1e-3)
+        accel[frames is None] = np.linalg.norm(np.diff(new_mid, 2, axis=0), axis=1).max()
+    assert accel[True] > 0.3  # the flip: the knee jumps 40 cm
+    assert accel[False] < 0.25 * accel[True]
+
+
+def test_head_target_near_the_pelvis_does_not_swing_the_upper_body(walk) -> None:
+    """Head targets far below the reach of a lowered pelvis (where the pelvis goes, a few cm off
+    it and circling it): the spine leans towards them without the upper body swinging round the
+    pelvis (aimed at the targets' directions, the head went round at 100 m/s^2)."""
+    targets = np.full(walk.shape, np.nan, np.float32)
+    frames = np.arange(10, 50, 2)
+    drift = 0.04 * np.stack([np.sin(frames / 4.0), np.zeros(len(frames)), np.cos(frames / 4.0)], 1)
+    targets[frames, HEAD] = walk[frames, 0] + drift + [0.0, -HEAD_DROP, 0.0]  # at the lowered pelvis
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = solve_limbs(walk, targets, [], np.zeros((len(walk), 2), bool))
+    head_acc = np.linalg.norm(np.diff(out[:, HEAD], 2, axis=0), axis=1).max() * 400.0  # m/s^2 at 20 fps
+    assert head_acc < 20.0
+    assert (out[frames, HEAD, 1] < walk[frames, HEAD, 1] - 0.2).all()  # it does go down
 
 
 def test_head_target_lowers_the_pelvis_and_leans_instead_of_bending_the_spine(walk) -> None:
