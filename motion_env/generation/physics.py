@@ -16,7 +16,8 @@ floor. This stage, run on the feet stage's output, fixes the vertical motion of 
   horizontal place the feet stage pinned);
 - **flight**: while no foot touches the floor (no contact flag and both soles clear of it; or,
   flagged or not, no foot the grounding would stand on: out of a stretched leg's reach, or more
-  than ``ground.PLANT_REACH`` above the floor), the centre of mass falls freely: a parabola of
+  than ``ground.PLANT_REACH`` above the floor, for :data:`MAX_HOP_FRAMES` at most: longer, the
+  body is stood on its lowest flagged foot), the centre of mass falls freely: a parabola of
   gravity :data:`GRAVITY` through the take-off and landing heights (:func:`plan_heights`);
 - **contact**: with a foot on the floor the vertical acceleration of the centre of mass stays
   within what floor and legs can give (:data:`STANCE_ACCELERATION`), so take-offs and landings
@@ -69,6 +70,10 @@ UNREACHABLE = 0.04
 # The longest flight (frames); a longer stretch without contacts is no jump (a decoder that marks
 # no contacts at all), and the body is not made to fall.
 MAX_FLIGHT_FRAMES = 16
+# The longest stretch (frames) in the air that the plan finds where the flags say a foot is
+# planted (a hop whose slow feet keep their flags: the CMU hops' feet are 6-12 cm up for 5
+# frames); longer, the body is stood on its feet instead.
+MAX_HOP_FRAMES = 8
 # A foot flagged in contact whose ankle and toe both move farther than this (m) a frame, two
 # frames running, is dragged, not planted (PhysicsFilter._planted): HumanML3D's contact flags
 # mark feet slower than about 4.5 cm a frame (motion.features.FOOT_CONTACT_THRESHOLD).
@@ -77,8 +82,8 @@ DRAG_STEP = 0.045
 _REPLANS = 4
 
 
-def _cap_flights(flight: np.ndarray, airborne: np.ndarray) -> np.ndarray:
-    """Flight flags (R, n) of R characters without stretches longer than MAX_FLIGHT_FRAMES, as far
+def _cap_flights(flight: np.ndarray, airborne: np.ndarray, longest: int = MAX_FLIGHT_FRAMES) -> np.ndarray:
+    """Flight flags (R, n) of R characters without stretches longer than `longest` frames, as far
     as they are seen (`airborne` (R,): frames in the air just before these, which the first
     stretch continues)."""
     n = flight.shape[1]
@@ -88,7 +93,7 @@ def _cap_flights(flight: np.ndarray, airborne: np.ndarray) -> np.ndarray:
     before = np.maximum.accumulate(np.where(flight, -1, t), axis=1)
     after = np.minimum.accumulate(np.where(flight, n, t)[:, ::-1], axis=1)[:, ::-1]
     length = after - before - 1 + np.where(before < 0, np.asarray(airborne)[:, None], 0)
-    return flight & (length <= MAX_FLIGHT_FRAMES)
+    return flight & (length <= longest)
 
 
 class PhysicsFilter:
@@ -225,7 +230,15 @@ class PhysicsFilter:
             landed = flights & ((soles + shift).min(axis=2) < 0.0) & todo[:, None]
             away = (lowest + shift > UNREACHABLE) | (soles + shift >= PLANT_REACH)
             aloft = ~flights & ~settled & np.where(support, away, True).all(axis=2) & todo[:, None]
-            todo = landed.any(axis=1) | aloft.any(axis=1)
+            # Feet flagged planted yet off the floor for longer than a hop are no flight: the
+            # body is stood on its lowest flagged foot there instead (a decoded crouch that
+            # lifts its feet for 0.7 s, planned as a flight, was launched 40 cm up and landed
+            # with a knee folded through the body).
+            stand = aloft & ~_cap_flights(flights | aloft, self.airborne[rows], MAX_HOP_FRAMES)
+            aloft &= ~stand
+            raw = np.where(stand, com - np.where(support, soles, np.inf).min(axis=2), raw)
+            settled |= stand
+            todo = landed.any(axis=1) | aloft.any(axis=1) | stand.any(axis=1)
             if not todo.any():
                 break
             for k in np.nonzero(landed.any(axis=1))[0]:

@@ -17,6 +17,7 @@ from motion_env.generation.ground import (
 from motion_env.generation.physics import (
     GRAVITY,
     MAX_FLIGHT_FRAMES,
+    MAX_HOP_FRAMES,
     STANCE_ACCELERATION,
     PhysicsFilter,
     _cap_flights,
@@ -123,6 +124,30 @@ def test_a_hop_with_its_feet_still_flagged_falls_freely_where_no_foot_is_stood_o
     aloft = np.flatnonzero(sole_heights(out).min(axis=1)[1:-1] >= PLANT_REACH) + 1  # no foot to stand on
     assert len(aloft) >= 4  # it still hops
     np.testing.assert_allclose(np.diff(com, 2)[aloft - 1], -GRAVITY * DT2, atol=1e-4)
+
+
+def test_feet_held_up_longer_than_a_hop_are_stood_on_not_flown() -> None:
+    """Flagged feet 15 cm above the floor for 0.7 s (a decoded crouch that lifts its feet): no
+    hop is that long, so the whole clip's body is lowered onto its feet instead of being launched
+    into a 0.7 s flight (planned as one, it crouched 10 cm and rose 25 cm; a generated jump's knees
+    folded flat on landing). The stream, which cannot see that far ahead, hops for MAX_HOP_FRAMES
+    at most."""
+    frames, start, stop = 60, 20, 20 + MAX_HOP_FRAMES + 6
+    joints = _standing(frames)
+    t = np.arange(frames)
+    lift = 0.15 * np.clip(np.minimum(t - start + 1, stop - t) / 4.0, 0.0, 1.0)  # eased up and down
+    joints[..., 1] += lift[:, None].astype(np.float32)
+    contacts = np.ones((frames, 4), np.float32)
+    out = apply_physics(joints, contacts).astype(np.float64)
+    com = centre_of_mass(out)[:, 1]
+    assert com.max() < centre_of_mass(joints.astype(np.float64))[:, 1].max() + 0.02  # not launched
+    assert com.min() > centre_of_mass(joints.astype(np.float64))[0, 1] - 0.05  # nor dropped to the floor
+    assert sole_heights(out)[start + 6 : stop - 6].min(axis=1).max() < PLANT_REACH  # stood on its feet
+    # A short lift (a hop the flags keep) still falls freely.
+    short = _standing(40)
+    short[15 : 15 + MAX_HOP_FRAMES - 2, :, 1] += 0.1
+    hop = centre_of_mass(apply_physics(short, np.ones((40, 4), np.float32)).astype(np.float64))[:, 1]
+    assert (np.abs(np.diff(hop, 2) + GRAVITY * DT2) < 1e-4).sum() >= 2
 
 
 def test_a_contacts_last_frame_is_not_stood_on() -> None:
