@@ -154,6 +154,7 @@ class PhysicsFilter:
         steps, descent = self._steps(rows, joints, soles)
         flagged = flags.reshape(r, n, 2, 2).any(axis=-1)  # (R, n, 2) left, right
         planted = self._planted(rows, flagged, steps)
+        still = planted  # flagged and not dragged
         reach = [
             -deepest_reach(frames[:, hip], frames[:, knee], frames[:, ankle]) for hip, knee, ankle, _ in LEGS
         ]
@@ -163,7 +164,7 @@ class PhysicsFilter:
         clearance = self._clearance(rows, joints, planted, steps, descent)
         planted, clearance = self._settle(rows, flagged, planted, clearance)
         planted = _lifting_off(planted)
-        heights = self._plan_rows(rows, soles, com, flagged, flight, lowest)
+        heights = self._plan_rows(rows, soles, com, flagged, flight, lowest, still)
         # The legs' re-solve is the costly part: every row's frames at once.
         out = place_body(
             frames,
@@ -195,14 +196,15 @@ class PhysicsFilter:
         planted: np.ndarray,
         flight: np.ndarray,
         lowest: np.ndarray,
+        still: np.ndarray,
     ) -> np.ndarray:
         """The new frames of characters `rows`: (R, n) heights of the centre of mass, from
         (R, n, 2) sole heights, (R, n) decoded heights of the centre of mass, (R, n, 2) planted
         feet, (R, n) frames in the air by the flags, (R, n, 2) sole heights with the legs
-        stretched; updates their state. The plans of rows with the same history length are one
-        batched solve (:func:`plan_heights` of the rows), replanned together while some row finds
-        a landing or a take-off; each row keeps its own state (floating estimate, flight caps,
-        history)."""
+        stretched, (R, n, 2) the flagged feet that are not dragged; updates their state. The
+        plans of rows with the same history length are one batched solve (:func:`plan_heights` of
+        the rows), replanned together while some row finds a landing or a take-off; each row
+        keeps its own state (floating estimate, flight caps, history)."""
         r, n = com.shape
         floating = self._float(rows, support_gap(soles.reshape(-1, 2), planted.reshape(-1, 2)).reshape(r, n))
         # The body is wanted standing on its planted feet, and raised where a foot would still be
@@ -230,13 +232,14 @@ class PhysicsFilter:
             landed = flights & ((soles + shift).min(axis=2) < 0.0) & todo[:, None]
             away = (lowest + shift > UNREACHABLE) | (soles + shift >= PLANT_REACH)
             aloft = ~flights & ~settled & np.where(support, away, True).all(axis=2) & todo[:, None]
-            # Feet flagged planted yet off the floor for longer than a hop are no flight: the
-            # body is stood on its lowest flagged foot there instead (a decoded crouch that
-            # lifts its feet for 0.7 s, planned as a flight, was launched 40 cm up and landed
-            # with a knee folded through the body).
-            stand = aloft & ~_cap_flights(flights | aloft, self.airborne[rows], MAX_HOP_FRAMES)
+            # Feet flagged planted, not dragged, yet off the floor for longer than a hop are no
+            # flight: the body is stood on the lowest of them there instead (a decoded crouch
+            # that lifts its feet for 0.7 s, planned as a flight, was launched 40 cm up and
+            # landed with a knee folded through the body). Dragged feet (a run's) stay as they were.
+            long = aloft & ~_cap_flights(flights | aloft, self.airborne[rows], MAX_HOP_FRAMES)
+            stand = long & still.any(axis=2)
             aloft &= ~stand
-            raw = np.where(stand, com - np.where(support, soles, np.inf).min(axis=2), raw)
+            raw = np.where(stand, com - np.where(still, soles, np.inf).min(axis=2), raw)
             settled |= stand
             todo = landed.any(axis=1) | aloft.any(axis=1) | stand.any(axis=1)
             if not todo.any():

@@ -143,6 +143,11 @@ def test_feet_held_up_longer_than_a_hop_are_stood_on_not_flown() -> None:
     assert com.max() < centre_of_mass(joints.astype(np.float64))[:, 1].max() + 0.02  # not launched
     assert com.min() > centre_of_mass(joints.astype(np.float64))[0, 1] - 0.05  # nor dropped to the floor
     assert sole_heights(out)[start + 6 : stop - 6].min(axis=1).max() < PLANT_REACH  # stood on its feet
+    # Feet dragged along all the while (a run's flagged feet, 6 cm a frame) are not stood on.
+    dragged = joints.copy()
+    dragged[..., 2] += 0.06 * t[:, None].astype(np.float32)
+    flown = centre_of_mass(apply_physics(dragged, contacts).astype(np.float64))[:, 1]
+    assert flown.max() > centre_of_mass(joints.astype(np.float64))[:, 1].max() + 0.02
     # A short lift (a hop the flags keep) still falls freely.
     short = _standing(40)
     short[15 : 15 + MAX_HOP_FRAMES - 2, :, 1] += 0.1
