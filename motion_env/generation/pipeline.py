@@ -25,8 +25,11 @@ stage methods causally, one token at a time, in the same order):
    the root path and rebuilt on the skeleton's bone lengths (decoded legs come out up to 9 cm
    short), its wrists where the decoder put them (:func:`~motion_env.generation.recompose.on_bone_lengths`),
    and with one pelvis shape for the whole clip (:func:`~motion_env.motion.kinematics.hold_pelvis_shape`);
-6. **feet and physics** (:class:`~motion_env.generation.feet.FootPinner`,
-   :mod:`motion_env.generation.physics`): feet the decoder marks as planted are pinned; then, with
+6. **feet and physics** (:meth:`Pipeline.balance`, :class:`~motion_env.generation.feet.FootPinner`,
+   :mod:`motion_env.generation.physics`): whole clips' root paths are shifted a few centimetres so
+   that the floor's push passes through the centre of mass (:mod:`motion_env.generation.balance`;
+   the start and the waypoints stay put; not the stream's, which cannot see a stance's end);
+   feet the decoder marks as planted are pinned; then, with
    ``Pipeline.physics`` (on by default), the body's height is planned so that its centre of mass
    falls with gravity in flight and takes off and lands within what legs can push, planted feet
    stand on the floor and no joint goes below it (:meth:`Pipeline.place_clip` runs 5 and 6);
@@ -47,6 +50,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from motion_env.generation.balance import balance_shift
 from motion_env.generation.feet import FootPinner
 from motion_env.generation.physics import apply_physics
 from motion_env.generation.recompose import (
@@ -56,6 +60,7 @@ from motion_env.generation.recompose import (
     recompose,
     smooth_path,
     snap_route,
+    waypoint_frames,
 )
 from motion_env.generation.refine import RefineConfig, Refined, refine_clip
 from motion_env.generation.request import BatchRequest
@@ -208,7 +213,8 @@ class Pipeline:
         out = []
         for i in range(len(req.texts)):
             if not controlled[i]:
-                _, joints = self.place_clip(body[i], paths[i], n_tok * self.rate)  # 5. compose, 6. feet
+                path = self.balance(body[i], paths[i], routes[i], n_tok * self.rate)  # 6. balance
+                _, joints = self.place_clip(body[i], path, n_tok * self.rate)  # 5. compose, 6. feet
                 out.append(Clip(joints[: req.num_frames]))
                 continue
             targets = req.joint_targets[i]
@@ -465,6 +471,25 @@ class Pipeline:
         return hold_pelvis_shape(joints, held[..., None]), path
 
     # ------------------------------------------------------------------ 6. feet and physics
+    def balance(
+        self, features: np.ndarray, root_path: np.ndarray, route: np.ndarray | None, num_frames: int
+    ) -> np.ndarray:
+        """A whole clip's root path shifted horizontally so that, with :attr:`physics`, the floor's
+        push passes through its centre of mass (:func:`~motion_env.generation.balance.balance_shift`,
+        measured on the composed body); the start and the route's waypoints stay where they are.
+        The stream keeps its path (a stance's balance needs the frames after it)."""
+        if not self.physics:
+            return root_path
+        joints, _ = self.compose(features, root_path, num_frames)
+        anchors = [0]
+        if route is not None and len(route):
+            anchors += [int(f) for f in waypoint_frames(root_path[:num_frames], route) if f >= 0]
+        shift = balance_shift(joints, features[:num_frames, FOOT_CONTACT], np.asarray(anchors))
+        out = np.array(root_path, dtype=np.float64)
+        out[:num_frames, :2] += shift
+        out[num_frames:, :2] += shift[-1]
+        return out.astype(np.float32)
+
     def place_clip(
         self, features: np.ndarray, root_path: np.ndarray, num_frames: int
     ) -> tuple[np.ndarray, np.ndarray]:

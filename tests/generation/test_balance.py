@@ -1,0 +1,87 @@
+"""The whole clips' balance (generation/balance.py): the root path shifted so that the floor's
+push passes through the centre of mass."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from motion_env.generation.balance import BALANCE_WEIGHT, balance_shift
+from motion_env.generation.height_plan import GRAVITY
+from motion_env.motion.mass import COM_WEIGHTS, centre_of_mass
+from motion_env.motion.skeleton import FPS, LEGS
+
+
+def _body(frames: int, lean: float) -> np.ndarray:
+    """A rigid stick body standing on its left foot, its centre of mass `lean` metres ahead of
+    the foot (+z), not accelerating: (T, 22, 3)."""
+    rng = np.random.default_rng(0)
+    pose = rng.normal(size=(22, 3)) * 0.05 + [0.0, 0.9, 0.0]
+    feet = [j for leg in LEGS for j in leg[2:]]
+    for _, _, ankle, toe in LEGS:  # both feet's middles at the origin
+        pose[ankle], pose[toe] = [0.0, 0.08, 0.04], [0.0, 0.0, -0.04]
+    off = centre_of_mass(pose)[[0, 2]] - [0.0, lean]
+    rest = [j for j in range(22) if j not in feet]
+    pose[rest] -= [off[0], 0.0, off[1]] / np.float64(sum(COM_WEIGHTS[rest]))
+    return np.repeat(pose[None], frames, axis=0)
+
+
+def _miss(joints: np.ndarray, shift: np.ndarray, stance: np.ndarray) -> np.ndarray:
+    """How far the horizontal (z) acceleration of the centre of mass, with the body moved by
+    `shift` and the standing foot left where it is, is from the push through the centre of mass."""
+    c = centre_of_mass(joints)
+    z = c[:, 2] + shift[:, 1]
+    acc = (z[2:] - 2 * z[1:-1] + z[:-2]) * FPS**2
+    foot = 0.5 * (joints[:, LEGS[0][2], 2] + joints[:, LEGS[0][3], 2])
+    want = (z - foot) * GRAVITY / c[:, 1]
+    return np.abs(acc - want[1:-1])[stance]
+
+
+def _run(frames: int = 60, speed: float = 3.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A rigid body carried forward (+z) at a constant `speed` (m/s), standing for 6 frames on a
+    foot put down under the middle of each stance, then 3 frames in the air, as a runner does:
+    (T, 22, 3) joints, (T, 4) contacts, (T,) bool stance."""
+    t = np.arange(frames)
+    body = _body(frames, lean=0.0)
+    body[..., 2] += (speed / FPS * t)[:, None]
+    stance = (t % 9) < 6
+    contacts = np.zeros((frames, 4))
+    contacts[stance, :2] = 1.0
+    _, _, ankle, toe = LEGS[0]
+    middle = t - t % 9 + 2.5  # each stance's middle frame
+    for j, dz in ((ankle, 0.04), (toe, -0.04)):
+        body[:, j, 2] = speed / FPS * middle + dz  # the planted foot stays under the stance's middle
+        body[~stance, j, 1] += 0.2  # lifted in the air
+    return body, contacts, stance
+
+
+def test_a_run_at_constant_speed_is_moved_so_the_push_passes_through_it() -> None:
+    joints, contacts, stance = _run()
+    shift = balance_shift(joints, contacts, np.array([0]))
+    assert shift[0].tolist() == [0.0, 0.0]
+    frames = np.flatnonzero(stance[1:-1]) + 1
+    # The foot stays where it was put down while the body moves by the shift.
+    before = _miss(joints, np.zeros_like(shift), frames - 1)
+    after = _miss(joints, shift, frames - 1)
+    assert after.mean() < 0.7 * before.mean()
+    assert np.abs(shift[:, 0]).max() < 1e-9  # nothing asks for a sideways move
+    assert np.abs(shift[:, 1]).max() < 0.1
+
+
+def test_waypoint_frames_keep_their_place_and_a_balanced_body_is_left_alone() -> None:
+    frames = 60
+    contacts = np.ones((frames, 4))
+    upright = _body(frames, lean=0.0)
+    assert np.abs(balance_shift(upright, contacts, np.array([0]))).max() < 1e-6
+    shift = balance_shift(_body(frames, lean=0.08), contacts, np.array([0, 20, 40]))
+    np.testing.assert_array_equal(shift[[0, 20, 40]], 0.0)
+    assert np.abs(shift).max() > 1e-3
+    # In flight (no contact) the centre of mass keeps its horizontal speed: a body that jerks
+    # forward and back in the air is moved against it.
+    flying = _body(frames, lean=0.0)
+    flying[:, :, 2] += 0.01 * np.sin(np.arange(frames) / 1.0)[:, None]  # 4 m/s^2 to and fro
+    free = balance_shift(flying, np.zeros((frames, 4)), np.array([0]))
+    z = centre_of_mass(flying)[:, 2]
+    before = np.abs(z[2:] - 2 * z[1:-1] + z[:-2]).mean()
+    z = z + free[:, 1]
+    assert np.abs(z[2:] - 2 * z[1:-1] + z[:-2]).mean() < 0.5 * before
+    assert BALANCE_WEIGHT > 0
