@@ -21,10 +21,10 @@ the balance of a stance needs the frames after it, which the stream does not hav
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import solveh_banded
 
 from motion_env.generation.ground import sole_heights
 from motion_env.generation.height_plan import GRAVITY
+from motion_env.motion.least_squares import three_point_least_squares
 from motion_env.motion.mass import centre_of_mass
 from motion_env.motion.skeleton import FPS, LEGS
 
@@ -66,17 +66,10 @@ def balance_shift(joints: np.ndarray, contacts: np.ndarray, anchors: np.ndarray)
     rhs = np.where(stance[:, None], k[:, None] * (c - foot)[:, [0, 2]], 0.0) - accel[:, [0, 2]]
     f2 = float(FPS**2)
     coef = np.stack([np.full(t_len, f2), -2.0 * f2 - k, np.full(t_len, f2)], axis=1)[1:-1]  # (T-2, 3)
-    band = np.zeros((3, t_len))  # upper form of the normal matrix (bandwidth 2)
-    for a in range(3):
-        for b in range(a, 3):
-            band[2 - (b - a), b : t_len - 2 + b] += coef[:, a] * coef[:, b]
-    normal_rhs = np.zeros((t_len, 2))
-    for a in range(3):
-        normal_rhs[a : t_len - 2 + a] += coef[:, a, None] * rhs[1:-1]
-    band[2] += BALANCE_WEIGHT**2
     held = np.asarray(anchors, dtype=np.int64)
     held = held[(held >= 0) & (held < t_len)]
-    band[2, held] += _ANCHOR
-    shift = solveh_banded(band, normal_rhs)
+    weight = np.full(t_len, BALANCE_WEIGHT**2)
+    weight[held] += _ANCHOR
+    shift = three_point_least_squares(coef, rhs[1:-1], weight, np.zeros((t_len, 2)))
     shift[held] = 0.0  # within 1e-6 m of it already
     return shift

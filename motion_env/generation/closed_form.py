@@ -36,10 +36,10 @@ pelvis is leaned towards as if it were a spine's length away.
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import solveh_banded
 from scipy.ndimage import gaussian_filter1d
 
 from motion_env.generation.feet import soft_limit
+from motion_env.motion.least_squares import three_point_least_squares
 from motion_env.motion.skeleton import JOINT_NAMES, LEGS, NUM_JOINTS
 
 __all__ = [
@@ -176,12 +176,10 @@ def smooth_field(
     t = len(field)
     if t < 3 or frames <= 0 or exact.all() or not np.abs(field).any():
         return np.asarray(field, np.float64)
+    field = np.asarray(field, np.float64)
+    second = np.tile(frames**2 * np.array([1.0, -2.0, 1.0]), (t - 2, 1))  # frames^2 x the second difference
     w = np.where(exact, 1e8, np.asarray(weight, np.float64))
-    band = np.zeros((3, t))  # upper banded form of diag(w) + frames^4 * D2' D2 (D2: second difference)
-    for a, b in ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2)):  # D2's rows are (1, -2, 1)
-        band[2 - (b - a), b : t - 2 + b] += frames**4 * (1.0, -2.0, 1.0)[a] * (1.0, -2.0, 1.0)[b]
-    band[2] += w
-    return solveh_banded(band, w[:, None] * np.asarray(field, np.float64))
+    return three_point_least_squares(second, np.zeros((t - 2, field.shape[1])), w, field)
 
 
 def causal_field(
