@@ -28,7 +28,7 @@ stage methods causally, one token at a time, in the same order):
 6. **feet and physics** (:meth:`Pipeline.balance`, :class:`~motion_env.generation.feet.FootPinner`,
    :mod:`motion_env.generation.physics`): whole clips' root paths are shifted a few centimetres so
    that the floor's push passes through the centre of mass (:mod:`motion_env.generation.balance`;
-   the start and the waypoints stay put; not the stream's, which cannot see a stance's end);
+   the start and the waypoints stay put; the stream's token by token, from the frames it has);
    feet the decoder marks as planted are pinned; then, with
    ``Pipeline.physics`` (on by default), the body's height is planned so that its centre of mass
    falls with gravity in flight and takes off and lands within what legs can push, planted feet
@@ -477,7 +477,8 @@ class Pipeline:
         """A whole clip's root path shifted horizontally so that, with :attr:`physics`, the floor's
         push passes through its centre of mass (:func:`~motion_env.generation.balance.balance_shift`,
         measured on the composed body); the start and the route's waypoints stay where they are.
-        The stream keeps its path (a stance's balance needs the frames after it)."""
+        The stream's, which cannot see a stance's end, is causal
+        (:class:`~motion_env.generation.balance.StreamBalance`)."""
         if not self.physics:
             return root_path
         joints, _ = self.compose(features, root_path, num_frames)

@@ -39,6 +39,7 @@ class StreamPaths:
     _control: Any
     _head: Any
     _routes: list[np.ndarray | None]
+    _anchor_frames: list[np.ndarray]
     _pending: dict[int, tuple[np.ndarray | None, np.ndarray, int]]
     _decoded: np.ndarray
     _snapped: np.ndarray
@@ -135,6 +136,7 @@ class StreamPaths:
         route = self._routes[i]
         last = anchor + len(path) - 1
         pelvis = self._control.pelvis_anchors(i, anchor, last) if self._control.active(i) else None
+        self._anchor_frames[i] = np.zeros(0, np.int64)
         if route is None and pelvis is None:
             return path.astype(np.float32)
         anchors = np.zeros((0, 3), np.float32)
@@ -144,6 +146,7 @@ class StreamPaths:
             anchors = anchors[~np.isin(anchors[:, 2], pelvis[:, 2])]
             anchors = np.concatenate([anchors, pelvis])
             anchors = anchors[np.argsort(anchors[:, 2], kind="stable")]
+        self._anchor_frames[i] = anchor + anchors[:, 2].astype(np.int64)  # the balance keeps them put
         return spread_residuals(path, anchors).astype(np.float32)
 
     def _plan_paths(self, rows: np.ndarray, first: np.ndarray) -> list[np.ndarray]:

@@ -29,6 +29,9 @@ frames) at a time:
   (:class:`~motion_env.generation.feet.FootPinner`) is causal, frame by frame, as for whole clips.
 - Snapping is causal too: the residual to each waypoint inside the look-ahead is spread linearly
   from the last decoded frame to the waypoint's frame.
+- So is the balance (:class:`~motion_env.generation.balance.StreamBalance`): each token's frames
+  are shifted so that the floor's push passes through the centre of mass, from the frames
+  already emitted (a whole clip's balance also sees each stance's end).
 - Joint targets and height limits (:meth:`MotionStream.set_joint_targets`,
   :meth:`MotionStream.set_objectives`) are met by the causal, closed-form stages of
   :mod:`motion_env.generation.stream_control` as each token is decoded.
@@ -43,6 +46,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from motion_env.generation.balance import StreamBalance
 from motion_env.generation.feet import FootPinner
 from motion_env.generation.physics import PhysicsFilter
 from motion_env.generation.pipeline import CONTROLLER_STREAM, TOKEN_STREAM, Pipeline, row_generator
@@ -147,6 +151,8 @@ class MotionStream(StreamPaths):
         self._pelvis = np.full(b, np.nan)  # each character's pelvis shape, its first token's (compose)
         self._feet = FootPinner(b)
         self._physics = PhysicsFilter(b) if g.physics else None
+        self._balance = StreamBalance(b) if g.physics else None
+        self._anchor_frames = [np.zeros(0, np.int64)] * b  # waypoint frames ahead (_snap_ahead)
         self._emitted = np.zeros(b, np.int64)
         self._decoded = np.zeros(b, np.int64)
         # A change waits for the next token; `_predicted`: the look-ahead beyond the roll-out is the head's.
@@ -364,6 +370,7 @@ class MotionStream(StreamPaths):
         self._feet.reset(i)
         if self._physics is not None:
             self._physics.reset(i)
+            self._balance.reset(i)
         self._control.reset(i)
         self._prev[i] = 0
         self._buffer_pos[i] = self._rate
@@ -410,7 +417,9 @@ class MotionStream(StreamPaths):
         if early.body is None:
             self._decode_compose(rows, early)  # 4. decode, 5. compose
         ahead, body, joints, paths = early.ahead, early.body, early.joints, early.paths
-        pinned = self._feet.apply_rows(rows, joints, body[:, :, FOOT_CONTACT])  # 6. feet and physics
+        if self._balance is not None:  # 6. balance, feet and physics
+            joints, paths = self._balanced(rows, first, joints, paths, body[:, :, FOOT_CONTACT])
+        pinned = self._feet.apply_rows(rows, joints, body[:, :, FOOT_CONTACT])
         if self._physics is not None:
             pinned = self._physics.apply_rows(rows, pinned, body[:, :, FOOT_CONTACT])
         slots = (first[:, None] + np.arange(self._rate)) % self._ring  # (N, rate) the token's frames
@@ -422,6 +431,19 @@ class MotionStream(StreamPaths):
                 self._buffer[i] = self._control.apply(int(i), f, self._buffer[i], body[n][:, FOOT_CONTACT])
         self._decoded[rows] += self._rate
         self._buffer_pos[rows] = 0
+
+    def _balanced(
+        self, rows: np.ndarray, first: np.ndarray, joints: np.ndarray, paths: np.ndarray, contacts: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The new frames and their root path shifted for balance (:class:`StreamBalance`); the
+        committed path the next tokens continue stays the controller's, as a whole clip's."""
+        anchors = [self._anchor_frames[i] - first[n] for n, i in enumerate(rows)]
+        held = np.array([self._control.active(int(i)) for i in rows], bool)
+        shift = self._balance.shift_rows(rows, joints, contacts, anchors, held).astype(np.float32)
+        joints = joints.copy()
+        joints[..., 0] += shift[:, :, None, 0]
+        joints[..., 2] += shift[:, :, None, 1]
+        return joints, paths + np.pad(shift, ((0, 0), (0, 0), (0, 1)))
 
     def _decode_compose(self, rows: np.ndarray, early: _EarlyToken) -> None:
         """Stages 4 and 5 of the token whose path and tokens `early` holds (into `early`)."""

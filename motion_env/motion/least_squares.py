@@ -23,10 +23,15 @@ def three_point_least_squares(
         weight: (T,) > 0 the pull of each frame towards `target` (it makes the system definite).
         target: (T, D).
 
+    With a leading batch axis on every argument ((B, T - 2, 3) ...), B problems of a few dozen
+    frames at once (the stream's balance): (B, T, D), by dense solves of the normal equations.
+
     Returns:
         (T, D) float64, by a banded Cholesky solve of the normal equations.
     """
     coef = np.asarray(coef, dtype=np.float64)
+    if coef.ndim == 3:
+        return _batched(coef, np.asarray(rhs, np.float64), np.asarray(weight, np.float64), target)
     t_len = len(weight)
     band = np.zeros((3, t_len))  # the normal matrix's upper band: entry (i, j) at band[2 + i - j, j]
     for a in range(3):
@@ -37,3 +42,17 @@ def three_point_least_squares(
     for a in range(3):
         normal_rhs[a : t_len - 2 + a] += coef[:, a, None] * np.asarray(rhs, np.float64)
     return solveh_banded(band, normal_rhs)
+
+
+def _batched(coef: np.ndarray, rhs: np.ndarray, weight: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """:func:`three_point_least_squares` of a batch of short problems, dense."""
+    batch, t_len = weight.shape
+    rows = np.arange(t_len - 2)
+    normal = np.zeros((batch, t_len, t_len))
+    normal_rhs = weight[..., None] * np.asarray(target, np.float64)
+    for a in range(3):
+        normal_rhs[:, rows + a] += coef[:, :, a, None] * rhs
+        for b in range(3):
+            normal[:, rows + a, rows + b] += coef[:, :, a] * coef[:, :, b]
+    normal[:, np.arange(t_len), np.arange(t_len)] += weight
+    return np.linalg.solve(normal, normal_rhs)

@@ -1,11 +1,11 @@
-"""The whole clips' balance (generation/balance.py): the root path shifted so that the floor's
-push passes through the centre of mass."""
+"""The balance (generation/balance.py): the root path shifted so that the floor's push passes
+through the centre of mass, over whole clips and, causally, token by token for the stream."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from motion_env.generation.balance import BALANCE_WEIGHT, balance_shift
+from motion_env.generation.balance import BALANCE_WEIGHT, StreamBalance, balance_shift
 from motion_env.generation.height_plan import GRAVITY
 from motion_env.motion.mass import COM_WEIGHTS, centre_of_mass
 from motion_env.motion.skeleton import FPS, LEGS
@@ -85,3 +85,58 @@ def test_waypoint_frames_keep_their_place_and_a_balanced_body_is_left_alone() ->
     z = z + free[:, 1]
     assert np.abs(z[2:] - 2 * z[1:-1] + z[:-2]).mean() < 0.5 * before
     assert BALANCE_WEIGHT > 0
+
+
+def _streamed(
+    joints: np.ndarray, contacts: np.ndarray, anchors: tuple[int, ...] = (), rate: int = 4
+) -> np.ndarray:
+    """StreamBalance's shift of one character, fed `rate` frames at a time: (T, 2)."""
+    balance = StreamBalance(1)
+    out = []
+    for f in range(0, len(joints), rate):
+        ahead = np.array([a - f for a in anchors if a >= f], np.int64)
+        out.append(
+            balance.shift_rows(
+                np.array([0]), joints[None, f : f + rate], contacts[None, f : f + rate], [ahead]
+            )[0]
+        )
+    return np.concatenate(out)
+
+
+def test_the_stream_balances_token_by_token_without_running_away() -> None:
+    # Causal: each token's shift from the frames emitted and its own, none after. It makes up
+    # less than the whole clip's (which sees each stance's end) but still most of the miss, and
+    # the shift does not grow over a long run (a lean left alone grows in stance).
+    joints, contacts, stance = _run(frames=240)
+    shift = _streamed(joints, contacts)
+    assert shift[0].tolist() == [0.0, 0.0]
+    frames = np.flatnonzero(stance[1:-1]) + 1
+    before = _miss(joints, np.zeros_like(shift), frames - 1)
+    assert np.abs(shift[:, 0]).max() < 1e-9
+    assert np.abs(shift[:, 1]).max() < 0.1
+    assert np.abs(shift[120:, 1]).max() < 1.5 * np.abs(shift[:120, 1]).max()
+    # A token's first frame continues the last one emitted: no jump between tokens, no step
+    # larger than the whole clip's (whose shift turns at each take-off too).
+    whole = balance_shift(joints, contacts, np.array([0]))
+    assert np.abs(np.diff(shift[:, 1])).max() < 1.2 * np.abs(np.diff(whole[:, 1])).max()
+    assert _miss(joints, shift, frames - 1).mean() < 0.3 * before.mean()
+
+
+def test_the_stream_keeps_waypoint_frames_in_place_and_leaves_a_held_row_alone() -> None:
+    joints, contacts, _ = _run(frames=60)
+    shift = _streamed(joints, contacts, anchors=(13, 30, 47))
+    np.testing.assert_array_equal(shift[[0, 13, 30, 47]], 0.0)
+    assert np.abs(shift).max() > 1e-3
+    balance = StreamBalance(2)
+    both = np.stack([joints[:4], joints[:4]])
+    out = balance.shift_rows(
+        np.array([0, 1]),
+        both,
+        np.stack([contacts[:4]] * 2),
+        [np.zeros(0, np.int64)] * 2,
+        np.array([False, True]),
+    )
+    assert np.abs(out[1]).max() == 0.0 and np.abs(out[0]).max() > 0.0
+    balance.reset(0)
+    again = balance.shift_rows(np.array([0]), joints[None, :4], contacts[None, :4], [np.zeros(0, np.int64)])
+    np.testing.assert_array_equal(again[0], out[0])  # a character started again starts as new

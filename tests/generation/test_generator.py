@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from motion_env.generation.balance import StreamBalance
 from motion_env.generation.generator import WEIGHT_FILES, MotionGenerator, SamplingConfig
 from motion_env.motion.kinematics import pelvis_shape
 from motion_env.motion.skeleton import FPS, NUM_JOINTS
@@ -77,15 +78,21 @@ def test_stream_shapes_and_root_path_match_whole_clips(gen: MotionGenerator, mon
     assert stream.root_state.shape == (2, 3)
     np.testing.assert_allclose(stream.root_state[:, :2], _pelvis_xz(frames[:, -1]), atol=1e-5)
     # Without waypoints the streamed root path is the whole-clip one: same controller rollout,
-    # same per-character generators; whole clips then shift it a little for balance
-    # (generation.balance), which the stream cannot (it needs the frames after a stance).
+    # same per-character generators; both then shift it a little for balance (generation.balance:
+    # whole clips over the clip, the stream token by token), the same way, not by the same amount.
     balanced = gen.generate_batch(texts, num_frames=30, seed=2)
     with monkeypatch.context() as m:
         m.setattr(type(gen.pipeline), "balance", lambda self, features, path, route, n: path)
+        m.setattr(
+            StreamBalance, "shift_rows", lambda self, rows, joints, *a: np.zeros((*joints.shape[:2], 2))
+        )
         clips = gen.generate_batch(texts, num_frames=30, seed=2)
+        stream = gen.stream(texts, seed=2)
+        unshifted = np.stack([stream.step() for _ in range(30)], axis=1)
     for b in range(2):
-        np.testing.assert_allclose(_pelvis_xz(frames[b]), _pelvis_xz(clips[b].joints), atol=1e-4)
+        np.testing.assert_allclose(_pelvis_xz(unshifted[b]), _pelvis_xz(clips[b].joints), atol=1e-4)
         assert np.abs(_pelvis_xz(balanced[b].joints) - _pelvis_xz(clips[b].joints)).max() < 0.2
+        assert 0.0 < np.abs(_pelvis_xz(frames[b]) - _pelvis_xz(clips[b].joints)).max() < 0.2
 
 
 def test_clips_and_streams_keep_one_pelvis_shape(gen: MotionGenerator) -> None:
@@ -120,6 +127,11 @@ def test_streamed_path_is_smoothed_as_whole_clips_and_passes_timed_waypoints(
         misses = max(np.linalg.norm(xz[f] - [x, z]) for x, z, f in route)
         return np.linalg.norm(np.diff(xz, n=2, axis=0), axis=-1) * FPS**2, misses
 
+    assert root_accel_and_misses()[1] < 1e-4  # the balance keeps the waypoints' frames in place
+    # The balance's shift, which moves the pelvis for the floor's push, is left out here.
+    monkeypatch.setattr(
+        StreamBalance, "shift_rows", lambda self, rows, joints, *a: np.zeros((*joints.shape[:2], 2))
+    )
     smoothed, missed = root_accel_and_misses()
     monkeypatch.setattr(stream_paths, "PATH_SMOOTHING", 0.0)
     raw, raw_missed = root_accel_and_misses()
