@@ -29,7 +29,8 @@ stage methods causally, one token at a time, in the same order):
    :mod:`motion_env.generation.physics`): whole clips' root paths are shifted a few centimetres so
    that the floor's push passes through the centre of mass (:mod:`motion_env.generation.balance`;
    the start and the waypoints stay put; the stream's token by token, from the frames it has);
-   feet the decoder marks as planted are pinned; then, with
+   feet the decoder marks as planted, and a run's toes on the floor
+   (:mod:`motion_env.generation.contacts`), are pinned; then, with
    ``Pipeline.physics`` (on by default), the body's height is planned so that its centre of mass
    falls with gravity in flight and takes off and lands within what legs can push, planted feet
    stand on the floor and no joint goes below it (:meth:`Pipeline.place_clip` runs 5 and 6);
@@ -51,6 +52,7 @@ import numpy as np
 import torch
 
 from motion_env.generation.balance import balance_shift
+from motion_env.generation.contacts import with_run_toes
 from motion_env.generation.feet import FootPinner
 from motion_env.generation.physics import apply_physics
 from motion_env.generation.recompose import (
@@ -485,7 +487,8 @@ class Pipeline:
         anchors = [0]
         if route is not None and len(route):
             anchors += [int(f) for f in waypoint_frames(root_path[:num_frames], route) if f >= 0]
-        shift = balance_shift(joints, features[:num_frames, FOOT_CONTACT], np.asarray(anchors))
+        contacts = with_run_toes(joints, features[:num_frames, FOOT_CONTACT])
+        shift = balance_shift(joints, contacts, np.asarray(anchors))
         out = np.array(root_path, dtype=np.float64)
         out[:num_frames, :2] += shift
         out[num_frames:, :2] += shift[-1]
@@ -495,11 +498,14 @@ class Pipeline:
         self, features: np.ndarray, root_path: np.ndarray, num_frames: int
     ) -> tuple[np.ndarray, np.ndarray]:
         """A whole clip's body on its path (:meth:`compose`), then its feet pinned where the decoder
-        marks them planted and, with :attr:`physics`, its height made to obey gravity and the floor
+        marks them planted (and a run's toes on the floor,
+        :func:`~motion_env.generation.contacts.with_run_toes`) and, with :attr:`physics`, its
+        height made to obey gravity and the floor
         (:func:`~motion_env.generation.physics.apply_physics`): (num_frames, 22, 3) joints before
         and after."""
         joints, _ = self.compose(features, root_path, num_frames)
-        pinned = FootPinner(1).apply(0, joints, features[:, FOOT_CONTACT])
+        contacts = with_run_toes(joints, features[: len(joints), FOOT_CONTACT])
+        pinned = FootPinner(1).apply(0, joints, contacts)
         if self.physics:
-            pinned = apply_physics(pinned, features[:, FOOT_CONTACT])
+            pinned = apply_physics(pinned, contacts)
         return joints, pinned

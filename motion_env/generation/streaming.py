@@ -47,6 +47,7 @@ import numpy as np
 import torch
 
 from motion_env.generation.balance import StreamBalance
+from motion_env.generation.contacts import with_run_toes
 from motion_env.generation.feet import FootPinner
 from motion_env.generation.physics import PhysicsFilter
 from motion_env.generation.pipeline import CONTROLLER_STREAM, TOKEN_STREAM, Pipeline, row_generator
@@ -149,6 +150,7 @@ class MotionStream(StreamPaths):
         self._snapped = np.zeros((b, r, 3), np.float32)  # committed (snapped) root per frame
         self._features = np.zeros((b, r, FEATURE_DIM), np.float32)  # decoded features per frame
         self._pelvis = np.full(b, np.nan)  # each character's pelvis shape, its first token's (compose)
+        self._composed = np.full((b, NUM_JOINTS, 3), np.nan)  # the last frame composed (with_run_toes)
         self._feet = FootPinner(b)
         self._physics = PhysicsFilter(b) if g.physics else None
         self._balance = StreamBalance(b) if g.physics else None
@@ -367,6 +369,7 @@ class MotionStream(StreamPaths):
         self._pending.pop(int(i), None)
         self._decoder.reset([i])
         self._pelvis[i] = np.nan
+        self._composed[i] = np.nan
         self._feet.reset(i)
         if self._physics is not None:
             self._physics.reset(i)
@@ -417,11 +420,14 @@ class MotionStream(StreamPaths):
         if early.body is None:
             self._decode_compose(rows, early)  # 4. decode, 5. compose
         ahead, body, joints, paths = early.ahead, early.body, early.joints, early.paths
-        if self._balance is not None:  # 6. balance, feet and physics
-            joints, paths = self._balanced(rows, first, joints, paths, body[:, :, FOOT_CONTACT])
-        pinned = self._feet.apply_rows(rows, joints, body[:, :, FOOT_CONTACT])
+        before = np.where(np.isnan(self._composed[rows]), joints[:, 0], self._composed[rows])
+        contacts = with_run_toes(joints, body[:, :, FOOT_CONTACT], before)  # 6. balance, feet and physics
+        self._composed[rows] = joints[:, -1]
+        if self._balance is not None:
+            joints, paths = self._balanced(rows, first, joints, paths, contacts)
+        pinned = self._feet.apply_rows(rows, joints, contacts)
         if self._physics is not None:
-            pinned = self._physics.apply_rows(rows, pinned, body[:, :, FOOT_CONTACT])
+            pinned = self._physics.apply_rows(rows, pinned, contacts)
         slots = (first[:, None] + np.arange(self._rate)) % self._ring  # (N, rate) the token's frames
         self._snapped[rows[:, None], slots] = np.stack([a[: self._rate] for a in ahead])
         self._buffer[rows], self._buffer_root[rows] = pinned, paths
