@@ -10,6 +10,8 @@ from scipy.linalg import solveh_banded
 
 __all__ = ["three_point_least_squares"]
 
+_BANDED_BATCH = 4  # up to this many problems of a batch are solved one by one (30 us each, banded)
+
 
 def three_point_least_squares(
     coef: np.ndarray, rhs: np.ndarray, weight: np.ndarray, target: np.ndarray
@@ -24,14 +26,17 @@ def three_point_least_squares(
         target: (T, D).
 
     With a leading batch axis on every argument ((B, T - 2, 3) ...), B problems of a few dozen
-    frames at once (the stream's balance): (B, T, D), by dense solves of the normal equations.
+    frames at once (the stream's balance): (B, T, D), by dense solves of the normal equations
+    (one banded solve each for a batch of a few).
 
     Returns:
         (T, D) float64, by a banded Cholesky solve of the normal equations.
     """
     coef = np.asarray(coef, dtype=np.float64)
-    if coef.ndim == 3:
+    if coef.ndim == 3 and len(coef) > _BANDED_BATCH:
         return _batched(coef, np.asarray(rhs, np.float64), np.asarray(weight, np.float64), target)
+    if coef.ndim == 3:  # a few problems: one banded solve each is cheaper than the dense set-up
+        return np.stack([three_point_least_squares(*row) for row in zip(coef, rhs, weight, target)])
     t_len = len(weight)
     band = np.zeros((3, t_len))  # the normal matrix's upper band: entry (i, j) at band[2 + i - j, j]
     for a in range(3):
