@@ -107,6 +107,7 @@ def ground_feet(
     planted: np.ndarray,
     clearance: np.ndarray | None = None,
     flat_ankle: float | np.ndarray = FLAT_ANKLE_HEIGHT,
+    pull: np.ndarray | None = None,
 ) -> np.ndarray:
     """Planted feet onto the floor, free feet out of it: (N, 22, 3) joints, (N, 2) bool planted
     (left, right) and (N, 2) lowest sole height of a free foot (default 0; see
@@ -126,6 +127,10 @@ def ground_feet(
     for leg, (hip, knee, ankle, _) in enumerate(LEGS):
         down = planted[:, leg] & (sole[:, leg] < PLANT_REACH)
         lift = np.where(down, -sole[:, leg], np.maximum(low[:, leg] - sole[:, leg], 0.0))
+        if pull is not None:  # a foot just let go of the floor: down by what is left of its pull
+            lift = np.where(
+                down | (pull[:, leg] <= 0.0), lift, np.maximum(-pull[:, leg], low[:, leg] - sole[:, leg])
+            )
         lift = np.maximum(lift, deepest_reach(out[:, hip], out[:, knee], out[:, ankle]))
         moved = np.nonzero(np.abs(lift) > 1e-6)[0]
         legs.append(np.full(len(moved), leg))
@@ -183,6 +188,7 @@ def place_body(
     planted: np.ndarray,
     clearance: np.ndarray,
     flat_ankle: np.ndarray,
+    pull: np.ndarray | None = None,
 ) -> np.ndarray:
     """The body (n, 22, 3) shifted vertically so that its centre of mass is at `heights` (n,), its
     feet grounded (:func:`ground_feet`; `planted`, `clearance`: (n, 2), `flat_ankle`: (n,)), no
@@ -193,7 +199,9 @@ def place_body(
     for _ in range(_PASSES):
         moved = joints[todo].copy()
         moved[..., 1] += shift[todo, None]
-        out[todo] = ground_feet(moved, planted[todo], clearance[todo], flat_ankle[todo])
+        out[todo] = ground_feet(
+            moved, planted[todo], clearance[todo], flat_ankle[todo], None if pull is None else pull[todo]
+        )
         error = heights[todo] - centre_of_mass(out[todo])[:, 1]
         off = np.abs(error) >= _PLACE_TOLERANCE
         shift[todo[off]] += error[off]

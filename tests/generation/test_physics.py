@@ -18,6 +18,7 @@ from motion_env.generation.physics import (
     GRAVITY,
     MAX_FLIGHT_FRAMES,
     MAX_HOP_FRAMES,
+    RELEASE_FADE,
     STANCE_ACCELERATION,
     PhysicsFilter,
     _cap_flights,
@@ -153,6 +154,37 @@ def test_feet_held_up_longer_than_a_hop_are_stood_on_not_flown() -> None:
     short[15 : 15 + MAX_HOP_FRAMES - 2, :, 1] += 0.1
     hop = centre_of_mass(apply_physics(short, np.ones((40, 4), np.float32)).astype(np.float64))[:, 1]
     assert (np.abs(np.diff(hop, 2) + GRAVITY * DT2) < 1e-4).sum() >= 2
+
+
+def test_a_flagged_foot_let_go_of_the_floor_rises_gradually() -> None:
+    # One foot, still flagged, rises 1.5 cm a frame while the body stands on the other: pulled
+    # onto the floor up to PLANT_REACH, then let go. It rose by the whole pull at once (a 6 cm
+    # step; a streamed jump's knee at 72 m/s^2); the pull now fades by RELEASE_FADE a frame.
+    frames = 40
+    joints = _standing(frames).astype(np.float64)
+    hip, knee, ankle, toe = LEGS[0]
+    rise = 0.015 * np.clip(np.arange(frames) - 10, 0, 8)
+    goal = joints[:, ankle] + rise[:, None] * [0.0, 1.0, 0.0]
+    new_knee, new_ankle = two_bone_ik(joints[:, hip], joints[:, knee], joints[:, ankle], goal)
+    joints[:, toe] += new_ankle - joints[:, ankle]
+    joints[:, knee], joints[:, ankle] = new_knee, new_ankle
+    flags = np.ones((frames, 4), np.float32)
+    for run in (apply_physics, _streamed):
+        left = sole_heights(run(joints.astype(np.float32), flags).astype(np.float64))[:, 0]
+        assert np.abs(np.diff(left)).max() < 0.045
+        assert left[-1] > 0.11  # and it rises all the way
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr("motion_env.generation.physics.RELEASE_FADE", 0.0)
+        left = sole_heights(apply_physics(joints.astype(np.float32), flags).astype(np.float64))[:, 0]
+    assert np.abs(np.diff(left)).max() > 0.055
+    # A contact that ends lets its foot go as before (a toe-off: the foot was on the floor).
+    ended = flags.copy()
+    ended[14:, :2] = 0.0
+    faded = apply_physics(joints.astype(np.float32), ended)
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr("motion_env.generation.physics.RELEASE_FADE", 0.0)
+        np.testing.assert_array_equal(faded, apply_physics(joints.astype(np.float32), ended))
+    assert 0.0 < RELEASE_FADE < 1.0
 
 
 def test_a_contacts_last_frame_is_not_stood_on() -> None:
