@@ -10,6 +10,7 @@ from motion_env.generation.feet import (
     ANKLE_MIN_ANGLE,
     FOOT_BLEND,
     FOOT_CREEP,
+    FOOT_GLIDE,
     LEGS,
     TOE_HINT_LENGTH,
     FootPinner,
@@ -152,6 +153,37 @@ def test_a_held_pin_creeps_to_where_the_foot_stands_as_slowly_as_real_feet_slide
     held = FootPinner(1).apply(0, dragged, np.ones((n, 4)))
     step = np.linalg.norm(np.diff(held[:, LEGS[0][2]][:, [0, 2]], axis=0), axis=-1)
     np.testing.assert_allclose(step[3:15], FOOT_CREEP, atol=1e-4)
+
+
+def test_a_landing_foot_glides_to_a_stop_instead_of_stopping_dead() -> None:
+    """A foot that lands moving 3 cm a frame was held where it was shown on the contact's first
+    frame: its speed fell to the creep's in one frame (the knees' and ankles' pops at a step's
+    onset: walks' acceleration 1.18x the real takes'). The pin now glides on with the last step,
+    FOOT_GLIDE of it and less each frame, and then holds."""
+    n, onset = 30, 10
+    decoded = np.repeat(_pose()[None], n, axis=0)
+    decoded[..., 2] += 0.03 * np.arange(n)[:, None]  # the body, feet and all, moving on
+    contacts = np.zeros((n, 4))
+    contacts[onset:, :2] = 1.0  # the left foot lands and stays flagged
+    ankle = LEGS[0][2]
+
+    def steps(glide: float) -> np.ndarray:
+        with pytest.MonkeyPatch.context() as m:
+            m.setattr("motion_env.generation.feet.FOOT_GLIDE", glide)
+            out = FootPinner(1).apply(0, decoded, contacts).astype(np.float64)
+        return np.linalg.norm(np.diff(out[:, ankle, [0, 2]], axis=0), axis=-1)  # step into frame t + 1
+
+    dead, glided = steps(0.0), steps(FOOT_GLIDE)
+    np.testing.assert_allclose(glided[: onset - 1], 0.03, atol=1e-6)  # untouched before the contact
+    landing = slice(onset - 2, onset + 8)  # (later the body drags the foot past FOOT_MAX_OFFSET)
+    assert np.abs(np.diff(dead[landing])).max() > 0.025  # 3 cm to the creep's 4 mm at once
+    assert np.abs(np.diff(glided[landing])).max() < 0.6 * np.abs(np.diff(dead[landing])).max()
+    assert np.all(np.diff(glided[onset : onset + 4]) < 0)  # slowing down
+    # It glides FOOT_GLIDE / (1 - FOOT_GLIDE) steps further at most, then is held as before.
+    assert glided[onset : onset + 8].sum() - dead[onset : onset + 8].sum() < 0.03 * FOOT_GLIDE / (
+        1 - FOOT_GLIDE
+    )
+    assert 0.0 < FOOT_GLIDE < 1.0
 
 
 def test_the_pinner_given_tokens_equals_the_whole_clip() -> None:
