@@ -313,12 +313,18 @@ class FootPinner:
                 fresh = np.isnan(pin[:, 0])
                 pin[fresh] = xz[fresh] + self.offset[rows[held_row], held_leg][fresh]  # where it is shown now
                 # A new pin glides on with the foot's last step, FOOT_GLIDE of it and less each frame.
-                glide = FOOT_GLIDE * np.nan_to_num(xz - self.shown[rows[held_row], held_leg, k])
-                size = vector_norm(glide)
-                glide *= (np.minimum(size, FOOT_GLIDE_STEP) / np.maximum(size, 1e-12))[:, None]
-                glide = np.where(fresh[:, None], glide, self.glide[rows[held_row], held_leg])
-                pin += np.where(fresh[:, None], 0.0, glide)
-                self.glide[rows[held_row], held_leg] = np.where(fresh[:, None], glide, FOOT_GLIDE * glide)
+                glide = self.glide[rows[held_row], held_leg]
+                pin += glide * ~fresh[:, None]
+                glide *= FOOT_GLIDE
+                if fresh.any():  # (set here: a free leg's glide is never read)
+                    last = both[:, t - 1] if t else self.shown[rows]  # the frame before: (R, legs, 2, 2)
+                    at = held_row[fresh], held_leg[fresh], k[fresh]
+                    step = FOOT_GLIDE * np.nan_to_num(xz[fresh] - last[at])
+                    size = vector_norm(step)
+                    glide[fresh] = (
+                        step * (np.minimum(size, FOOT_GLIDE_STEP) / np.maximum(size, 1e-12))[:, None]
+                    )
+                self.glide[rows[held_row], held_leg] = glide
                 moved = pin - xz
                 dist = vector_norm(moved)
                 creep = np.where(fresh, 0.0, np.minimum(FOOT_CREEP_RATE * dist, FOOT_CREEP))
@@ -336,9 +342,8 @@ class FootPinner:
                 since[held_row, held_leg] = 0
             self.pins[rows] = pins
             self.since[rows] = since
-            self.glide[rows] *= ~free[..., None]
-            self.shown[rows] = both[:, t]
             self.offset[rows] = offsets[:, t] = offset
+        self.shown[rows] = both[:, -1]
         return offsets
 
 
