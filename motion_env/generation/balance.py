@@ -158,14 +158,14 @@ class StreamBalance:
         pull[first, 2] += _ANCHOR  # a first frame is not shifted
         target = np.zeros((n, span, 2))
         target[:, :2] = self._shift[rows]
-        for r, frames in enumerate(anchors):
-            at = np.asarray(frames, np.int64) + 2
-            pull[r, at[(at >= 2) & (at < span)]] += _ANCHOR
+        ahead = [np.asarray(f, np.int64) for f in anchors]
+        ahead = [f[(f >= 0) & (f < span - 2)] for f in ahead]  # the window's frames after the emitted
+        for r, frames in enumerate(ahead):
+            pull[r, frames + 2] += _ANCHOR
         shift = three_point_least_squares(coef, rows_rhs, pull, target)[:, 2 : 2 + rate]
         shift[first, 0] = 0.0
-        for r, frames in enumerate(anchors):
-            at = np.asarray(frames, np.int64)
-            shift[r, at[(at >= 0) & (at < rate)]] = 0.0  # within 1e-6 m of it already
+        for r, frames in enumerate(ahead):
+            shift[r, frames[frames < rate]] = 0.0  # within 1e-6 m of it already
         if held is not None:
             shift[held] = 0.0
         self._shift[rows] = shift[:, -2:]

@@ -221,14 +221,13 @@ class FootPinner:
     (its ankle, or its toe while only the toe touches, as the heel lifts; gliding on for a few
     frames with the foot's last step, FOOT_GLIDE, so that a landing foot does not stop dead) and
     the leg is re-solved with :func:`two_bone_ik`, within the leg's soft reach
-    (:func:`soft_reach`). A held pin creeps
-    towards where the foot is shown, FOOT_CREEP_RATE of the way a frame and FOOT_CREEP at most (as
-    slowly as real planted feet slide), so one frame's error of the decoded foot is not frozen for
-    the whole contact. The pin follows the foot when the body drags it more than FOOT_MAX_OFFSET
-    away, or so far that the shin would lean over the foot beyond ANKLE_MIN_ANGLE
-    (:func:`ankle_room`), and after the contact the correction fades out over FOOT_BLEND frames
-    (:func:`release_fade`). It never needs future frames, and it keeps every joint within
-    FOOT_MAX_OFFSET of the decoded pose: pins the leg cannot reach make no pops.
+    (:func:`soft_reach`). A held pin creeps towards where the foot is shown, FOOT_CREEP_RATE of
+    the way a frame and FOOT_CREEP at most (as slowly as real planted feet slide), so one frame's
+    error of the decoded foot is not frozen for the whole contact. The pin follows the foot when
+    the body drags it more than FOOT_MAX_OFFSET away, or so far that the shin would lean over the
+    foot beyond ANKLE_MIN_ANGLE (:func:`ankle_room`), and after the contact the correction fades
+    out over FOOT_BLEND frames (:func:`release_fade`). It never needs future frames, and it keeps
+    every joint within FOOT_MAX_OFFSET of the decoded pose: pins the leg cannot reach make no pops.
 
     Args:
         batch: B characters; the state of each carries over from one :meth:`apply` to the next.
