@@ -132,13 +132,15 @@ class RefineConfig(CheckedConfig):
             acceleration of a controlled clip, against the same seed without targets, from at
             most 4.3x to 2.5x (90th percentile 2.5x -> 1.75x), the mean target error from 0.17
             to 0.25 cm.
-        pop_guard: the optimiser's change is kept whole only if the composed body's largest
-            joint acceleration stays within this many times the sampled clip's on the same path;
-            else a half, a quarter or none of it (:func:`_without_new_pops`; 0: off). The
-            optimiser's differentiable body does not re-solve the arms as the composition does,
-            and a change it saw as smooth could compose to an elbow flipping sides. Measured on
-            48 controlled val clips: the largest ratio 5.49 -> 3.13, within reach 1.20 -> 1.09,
-            the mean target error 0.26 cm either way.
+        pop_guard: the optimiser's change is kept whole only if the placed body's (composed,
+            feet pinned, physics) largest joint acceleration stays within this many times the
+            sampled clip's on the same path; else a half, a quarter or none of it
+            (:func:`_without_new_pops`; 0: off). The optimiser's differentiable body does not
+            re-solve the arms as the composition does, nor pin the feet, and a change it saw as
+            smooth could compose to an elbow flipping sides or a foot jumping to a new pin.
+            Measured on 48 controlled val clips: the largest ratio 5.49 -> 3.13, within reach
+            1.20 -> 1.09, the mean target error 0.26 cm either way (on the composed body; on the
+            placed one, 96 val clips within reach: largest 3.15 -> 1.54).
     """
 
     space: Annotated[str, SPACES] = "latent"
