@@ -14,8 +14,10 @@ The dataset is a folder, or a pack made by ``scripts/pack_takes.py`` (unpacked f
     python scripts/train_vqvae_runs.py --pack gpu/takes.npz --device cuda --budget 6 --out $OUT \\
         --run 'long={"batch_size": 64}' --run 'batch256={"batch_size": 256, "lr": 6e-4}'
 
-Every run starts from the shipped tokenizer's recipe (``RECIPE``; width 256 and the smoothness
-losses of the model card's Training section), which a run's JSON overrides field by field.
+Every run starts from session 13's tokenizer recipe (``RECIPE``; width 256 and the smoothness
+losses of the model card's Training section), which a run's JSON overrides field by field (the
+tokenizer shipped since session 20 is the run
+``cb1024L={"batch_size": 256, "lr": 6e-4, "codebook_size": 1024}`` with ``--steps 13000``).
 """
 
 from __future__ import annotations
