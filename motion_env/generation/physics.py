@@ -78,6 +78,11 @@ MAX_HOP_FRAMES = 8
 # the pull down it had, each frame, instead of rising by it at once (chosen on val: climbs' pops 56
 # -> 31 %, walks unchanged; 0.9 leaves a lifted foot 1-2 cm low for a second).
 RELEASE_FADE = 0.7
+# Frames of the usual flat-foot ankle height (ground.FLAT_ANKLE_HEIGHT) the learnt one starts from
+# (PhysicsFilter._flat_ankle): learnt from a stream's first token alone (8 flat frames of a
+# greeting's start: 5.1 cm against 9.7 later), the soles were put 4-6 cm too high and the
+# feet sank that far into the floor (the replay's penetration).
+FLAT_ANKLE_PRIOR = 16
 # A foot flagged in contact whose ankle and toe both move farther than this (m) a frame, two
 # frames running, is dragged, not planted (PhysicsFilter._planted): HumanML3D's contact flags
 # mark feet slower than about 4.5 cm a frame (motion.features.FOOT_CONTACT_THRESHOLD).
@@ -208,9 +213,11 @@ class PhysicsFilter:
             flat = flags[..., 2 * leg] & flags[..., 2 * leg + 1]
             self.flat[rows, 0] += np.where(flat, joints[..., ankle, 1] - joints[..., toe, 1], 0.0).sum(axis=1)
             self.flat[rows, 1] += flat.sum(axis=1)
-        seen = self.flat[rows, 1] > 0
-        mean = self.flat[rows, 0] / np.maximum(self.flat[rows, 1], 1)
-        return np.where(seen, np.clip(mean, *FLAT_ANKLE_RANGE), FLAT_ANKLE_HEIGHT)
+        # The mean of the flat frames seen, drawn towards the usual height by FLAT_ANKLE_PRIOR frames
+        # of it: a stream's first token, alone, can be far off.
+        total = self.flat[rows, 0] + FLAT_ANKLE_PRIOR * FLAT_ANKLE_HEIGHT
+        mean = total / (self.flat[rows, 1] + FLAT_ANKLE_PRIOR)
+        return np.clip(mean, *FLAT_ANKLE_RANGE)
 
     def _plan_rows(
         self,

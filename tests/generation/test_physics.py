@@ -376,3 +376,23 @@ def test_flights_are_capped_as_frame_by_frame() -> None:
         np.testing.assert_array_equal(_cap_flights(flight, airborne), want)
     assert not _cap_flights(np.ones((1, MAX_FLIGHT_FRAMES + 1), bool), np.zeros(1, np.int64)).any()
     assert _cap_flights(np.ones((1, MAX_FLIGHT_FRAMES), bool), np.zeros(1, np.int64)).all()
+
+
+def test_the_flat_ankle_height_is_learnt_from_many_frames_not_a_first_token() -> None:
+    """A stream's first token with its feet flagged flat but pitched (the ankle 5 cm over the toe
+    joint instead of about 9) barely moves the height the soles are measured with; a long run of
+    flat frames at another height is learnt (FLAT_ANKLE_PRIOR frames of the usual one to start)."""
+    from motion_env.generation.physics import FLAT_ANKLE_PRIOR
+
+    def token(frames: int, ankle_over_toe: float) -> np.ndarray:
+        joints = np.zeros((1, frames, 22, 3))
+        for _, _, ankle, _ in LEGS:
+            joints[..., ankle, 1] = ankle_over_toe
+        return joints
+
+    f = PhysicsFilter(1)
+    first = f._flat_ankle(np.array([0]), token(4, 0.05), np.ones((1, 4, 4), bool))[0]  # one token
+    assert abs(first - FLAT_ANKLE_HEIGHT) < 0.4 * abs(0.05 - FLAT_ANKLE_HEIGHT)  # nearer the usual than 5 cm
+    many = 10 * FLAT_ANKLE_PRIOR
+    later = f._flat_ankle(np.array([0]), token(many, 0.10), np.ones((1, many, 4), bool))[0]
+    assert abs(later - 0.10) < 0.1 * abs(0.10 - FLAT_ANKLE_HEIGHT) + 0.002
