@@ -79,8 +79,8 @@ MAX_HOP_FRAMES = 8
 # -> 31 %, walks unchanged; 0.9 leaves a lifted foot 1-2 cm low for a second).
 RELEASE_FADE = 0.7
 # Frames of the usual flat-foot ankle height (ground.FLAT_ANKLE_HEIGHT) the learnt one starts from
-# (PhysicsFilter._flat_ankle): learnt from a stream's first token alone (8 flat frames of a
-# greeting's start: 5.1 cm against 9.7 later), the soles were put 4-6 cm too high and the
+# (PhysicsFilter._flat_ankle): learnt from a stream's first token alone (a greeting's, both feet
+# flat in its 4 frames: 5.1 cm against 9.7 later), the soles were put 4-6 cm too high and the
 # feet sank that far into the floor (the replay's penetration).
 FLAT_ANKLE_PRIOR = 16
 # A foot flagged in contact whose ankle and toe both move farther than this (m) a frame, two
@@ -208,7 +208,8 @@ class PhysicsFilter:
 
     def _flat_ankle(self, rows: np.ndarray, joints: np.ndarray, flags: np.ndarray) -> np.ndarray:
         """(R,) flat-foot ankle height of characters `rows`, learnt from their frames so far and
-        `joints` (R, n, 22, 3), `flags` (R, n, 4): frames with both contacts of a foot on."""
+        `joints` (R, n, 22, 3), `flags` (R, n, 4): frames with both contacts of a foot on, after
+        FLAT_ANKLE_PRIOR frames of the usual height."""
         for leg, (_, _, ankle, toe) in enumerate(LEGS):
             flat = flags[..., 2 * leg] & flags[..., 2 * leg + 1]
             self.flat[rows, 0] += np.where(flat, joints[..., ankle, 1] - joints[..., toe, 1], 0.0).sum(axis=1)

@@ -348,11 +348,12 @@ def _largest_acceleration(joints: np.ndarray) -> float:
 
 def _without_new_pops(
     pipe: Pipeline, sampled: np.ndarray, optimised: np.ndarray, path: np.ndarray, n: int, guard: float
-) -> np.ndarray:
+) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
     """`optimised` features, or less of their change from `sampled` (a half, a quarter, none),
     whichever first places (composed, feet pinned, physics: :meth:`Pipeline.place_clip`) a body
     whose largest joint acceleration is at most `guard` times the sampled features' on the same
-    path (0: `optimised` as it is).
+    path (0: `optimised` as it is), and that placement (None with the guard off), which the
+    finish starts from.
 
     The optimiser sees the body through a differentiable copy of the composition
     (:mod:`~motion_env.generation.torch_body`) that does not re-solve the arms as
@@ -365,14 +366,16 @@ def _without_new_pops(
     way; the optimiser only brings the body closer.
     """
     if guard <= 0:
-        return optimised
-    limit = guard * _largest_acceleration(pipe.place_clip(sampled, path, n)[1])
+        return optimised, None
+    base = pipe.place_clip(sampled, path, n)
+    limit = guard * _largest_acceleration(base[1])
     change = optimised - sampled
     for share in (1.0, 0.5, 0.25):
         candidate = optimised if share == 1.0 else (sampled + share * change).astype(np.float32)
-        if _largest_acceleration(pipe.place_clip(candidate, path, n)[1]) <= limit:
-            return candidate
-    return sampled
+        placed = pipe.place_clip(candidate, path, n)
+        if _largest_acceleration(placed[1]) <= limit:
+            return candidate, placed
+    return sampled, base
 
 
 def _violations(objectives: list, joints: np.ndarray) -> list[float]:
@@ -421,6 +424,7 @@ def refine_clip(
         joints1, _ = pipe.compose(features, path, n)
         path = detour(path, joints1, areas)
     steps = 0
+    placed = None  # the body placed on `path`, when the pop guard has made it
     # HeightLimit is left to the closed-form crouch (the feet stay planted): given to the
     # optimiser, it lowers the whole body, feet through the floor included.
     costs = [o for o in objectives if not isinstance(o, HeightLimit)]
@@ -441,12 +445,13 @@ def refine_clip(
             pipe, codes, gpt_logits, features, aligned, reach, costs, config, keep, pelvis
         )
         smoothed = _smoothed_change(features, optimised, config.spread)
-        features = _without_new_pops(pipe, features, smoothed, path, n, config.pop_guard)
+        features, placed = _without_new_pops(pipe, features, smoothed, path, n, config.pop_guard)
     contacts = features[:t_len, FOOT_CONTACT] > 0.5
     planted = contacts.reshape(t_len, 2, 2).any(axis=2)
     margin = 0.0
     for _ in range(4):
-        joints, pinned = pipe.place_clip(features, path, n)
+        joints, pinned = pipe.place_clip(features, path, n) if placed is None else placed
+        placed = None  # a detour changes the path: placed again
         final = solve_limbs(pinned[:t_len], targets, limits, planted)
         worst = max([float(o.violation(final).max(initial=0.0)) for o in areas], default=0.0)
         if worst <= 1e-4:
