@@ -67,10 +67,11 @@ def _add_natural_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--per-action", type=int, default=7, help="takes made again per action (default 7)")
     p.add_argument("--seed", type=int, default=0, help="choice of takes, real halves, generator seed")
     p.add_argument(
-        "--stage", choices=("generated", "streamed", "vqvae"), default="generated",
+        "--stage", choices=("generated", "streamed", "vqvae", "real-path"), default="generated",
         help="generated: the whole generator along the takes' paths; streamed: the same requests frame "
         "by frame, as the stream and the environments make them; vqvae: the real takes through the "
-        "VQ-VAE alone, on their real root paths (what the tokenizer changes)",
+        "VQ-VAE alone, on their real root paths (what the tokenizer changes); real-path: the "
+        "generator's tokens along the takes' real root paths, no path controller (what the GPT adds)",
     )  # fmt: skip
     p.add_argument(
         "--weights", "--model", dest="model", default=None,

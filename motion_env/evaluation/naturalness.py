@@ -14,7 +14,11 @@ dataset's ``index.csv``) gives up to ``per_action`` of its takes (seeded choice)
 - stage ``vqvae``: the take's features encoded and decoded by the VQ-VAE alone, the decoded body
   placed on the take's real root path and its feet pinned as the generator does (stages 4-6 of
   :mod:`motion_env.generation.pipeline`, without the physics stage): what the tokenizer alone
-  changes.
+  changes;
+- stage ``real-path``: the generator's own tokens, sampled from the take's caption along the
+  take's real root path instead of the path controller's, then decoded, balanced, placed on that
+  path, its feet pinned and its physics applied as in a whole clip: with ``vqvae`` and
+  ``generated`` on either side, it splits what the tokenizer, the GPT and the path each add.
 
 Per action (and over all of them), the clips against the same real takes (definitions in
 ``docs/metrics.md``, "Naturalness"):
@@ -74,7 +78,7 @@ __all__ = [
     "travel_waypoints",
 ]
 
-STAGES = ("generated", "streamed", "vqvae")
+STAGES = ("generated", "streamed", "vqvae", "real-path")
 TRAVEL_SPEED = 0.25  # m/s: a second in which the root moves slower than this gets no waypoint
 POP_FACTOR = 1.5  # a clip pops when its largest joint acceleration exceeds this x the real p99.9
 MIN_FRAMES = 20  # 1 s: the shortest clip the replay judges
@@ -89,8 +93,9 @@ class NaturalnessSettings:
         split: the held-out split: "test" to report, "val" to choose between models.
         per_action: clips per action (the action's takes, seeded choice, when it has more).
         seed: the choice of takes, the real-vs-real halves and the generator's seed.
-        stage: "generated" (the whole generator), "streamed" (the same, frame by frame) or "vqvae"
-            (the real takes through the VQ-VAE).
+        stage: "generated" (the whole generator), "streamed" (the same, frame by frame), "vqvae"
+            (the real takes through the VQ-VAE) or "real-path" (the generator's tokens along the
+            takes' real root paths).
         min_takes: an action is reported when the split has at least this many takes of it.
         classifier: the classifier checkpoint whose features the distances use (None: shipped).
         actions: only these actions (None: every action with min_takes takes); each one's row is
@@ -224,6 +229,29 @@ def _vqvae(gen: Any, take: NaturalTake) -> np.ndarray:
     joints, _ = p.compose(body, path, len(take.joints))
     contacts = np.concatenate([body[:, FOOT_CONTACT], np.repeat(body[-1:, FOOT_CONTACT], len(path) - n, 0)])
     return FootPinner(1).apply(0, joints, contacts)
+
+
+def _on_real_path(gen: Any, take: NaturalTake, seed: int) -> np.ndarray:
+    """The take made again by the generator's stages 1 and 3-6 along its real root path (continued
+    as in :func:`_generated`): the GPT reads that path's gait-free features (as in its training)
+    instead of the path controller's path, and the body is placed on it."""
+    import torch
+
+    from motion_env.motion.trajectory import gait_free_path
+
+    p = gen.pipeline
+    t_len = len(take.joints)
+    path = extended_path(root_path_from_joints(take.joints))
+    n_tok = -(-t_len // p.rate)
+    with torch.no_grad():
+        tokens = p.sample_tokens(p.encode_text([take.text]), gait_free_path(path)[None], n_tok, seed)
+        body = p.decode(tokens)[0]
+    frames = n_tok * p.rate
+    path = p.balance(body, path, None, frames)
+    return p.place_clip(body, path, frames)[1][:t_len]
+
+
+_MAKERS = {"generated": _generated, "streamed": _streamed, "real-path": _on_real_path}
 
 
 @dataclass
@@ -481,8 +509,7 @@ def evaluate_naturalness(gen: Any, settings: NaturalnessSettings, progress: bool
             if settings.stage == "vqvae":
                 made.add(_vqvae(gen, take))
             else:
-                make = _generated if settings.stage == "generated" else _streamed
-                made.add(make(gen, take, settings.seed))
+                made.add(_MAKERS[settings.stage](gen, take, settings.seed))
             real.add(take.joints)
             bar.update(1)
         real_accel = np.concatenate([joint_acceleration(t.joints).ravel() for t in ts])

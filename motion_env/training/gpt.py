@@ -21,6 +21,7 @@ from typing import Annotated, Any
 import numpy as np
 import torch
 
+from motion_env.data.dataset import read_index
 from motion_env.models.checkpoint import (
     check_text_encoder,
     config_from_dict,
@@ -57,6 +58,10 @@ class GPTTrainConfig(TrainConfig):
     # Each train clip is also tokenised from its 2nd, 3rd, ... frame (up to the VQ-VAE's rate):
     # the same motion cut into tokens at other phases, as many more token sequences to learn from.
     token_offsets: PositiveInt = 1  # phases each train clip is tokenised at (1: from its first frame only)
+    # Rare actions (a goodbye: 26 train clips against 728 raised hands) are drawn more often: a
+    # clip's chance is its length x (train clips of its action)^-action_balance (index.csv's
+    # label; clips without one are one group); 0.5 is the caption adapter's square-root prior.
+    action_balance: Annotated[float, "[0, 1]"] = 0.0  # 0: clips drawn by length alone
     encoder: str = DEFAULT_TEXT_ENCODER  # text encoder name (motion_env.text.load_text_encoder)
     init: str | None = None  # GPT checkpoint (packaged ones too) a fresh run starts from: weights, config
 
@@ -105,6 +110,23 @@ class _TokenSet:
         if not self.codes:
             raise ValueError("no clip with at least two tokens and a caption")
         self.lengths = np.array([c.shape[0] for c in self.codes])  # tokens per clip
+        self.labels = [""] * len(self.codes)  # each entry's action (set_labels)
+        self._weights: dict[float, np.ndarray] = {}  # draw_weights by balance
+
+    def set_labels(self, index: dict[str, dict[str, str]]) -> None:
+        """Each entry's action from the dataset's index (name -> row; a sub-clip or another
+        phase reads its whole clip's row; unlisted: no label)."""
+        base = [n.split("@")[0].split(":")[0] for n in self.names]
+        self.labels = [index.get(b, {}).get("label", "") for b in base]
+        self._weights.clear()
+
+    def draw_weights(self, balance: float) -> np.ndarray:
+        """Each entry's chance of being drawn: its length x (entries of its action)^-balance."""
+        if balance not in self._weights:
+            _, group, counts = np.unique(self.labels, return_inverse=True, return_counts=True)
+            w = self.lengths * counts[group].astype(float) ** -balance
+            self._weights[balance] = w / w.sum()
+        return self._weights[balance]
 
     def __len__(self) -> int:
         return len(self.codes)
@@ -217,6 +239,7 @@ def train_gpt(
     model_config = _model_config(model_config, vq, text_encoder)
     normalizer = loop.load_normalizer(data_dir)
     train = _TokenSet(loop.load_split(data_dir, "train"), vq, normalizer, device, config.token_offsets)
+    train.set_labels(read_index(data_dir))
     val = _TokenSet(loop.load_split(data_dir, "val"), vq, normalizer, device)
     table, caption_row = _embed_captions(text_encoder, [train, val])
 
@@ -311,11 +334,12 @@ def _sample_batch(
     caption_row: dict[str, int],
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
     """A training batch ``(prev, path, targets, text, drop)`` of ``config.batch_size`` crops of at
-    most a window: clips drawn in proportion to their length, a share of the crops at the clip's
+    most a window: clips drawn in proportion to their length (rare actions more often with
+    ``config.action_balance``), a share of the crops at the clip's
     first token, a random caption of the clip (jittered), and `drop` marking the samples trained
     with the null text."""
     L, B = model_config.block_size, config.batch_size
-    idx = rng.choice(len(data), size=B, p=data.lengths / data.lengths.sum())
+    idx = rng.choice(len(data), size=B, p=data.draw_weights(config.action_balance))
     span = np.maximum(data.lengths[idx] - L, 0)
     starts = np.where(rng.random(B) < config.start_crop, 0, (rng.random(B) * (span + 1)).astype(int))
     # Pad only to the longest crop of the batch: most clips are far shorter than the window.

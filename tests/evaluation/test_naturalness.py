@@ -171,7 +171,7 @@ def test_takes_by_action_with_enough_takes(natural_dataset: Path) -> None:
     assert first.text == "a person does a walk" and first.joints.shape == (FRAMES, 22, 3)
 
 
-@pytest.mark.parametrize("stage", ["generated", "streamed", "vqvae"])
+@pytest.mark.parametrize("stage", ["generated", "streamed", "vqvae", "real-path"])
 def test_report_on_the_random_model(tiny_generator, natural_dataset, classifier_file, stage: str) -> None:
     settings = NaturalnessSettings(
         data=natural_dataset, per_action=2, stage=stage, classifier=classifier_file
@@ -206,6 +206,19 @@ def test_streamed_and_whole_clips_make_the_same_request(tiny_generator, natural_
         for joints in (whole, streamed):
             np.testing.assert_allclose(joints[int(frame), 0, [0, 2]], [x, z], atol=1e-3)
     assert np.abs(streamed - whole).max() > 1e-3  # the causal stages are not the whole clip's
+
+
+def test_the_real_path_stage_walks_the_takes_own_path(tiny_generator, natural_dataset) -> None:
+    # The tokens and the body go along the take's root path, not the (untrained) controller's.
+    from motion_env.evaluation.naturalness import _on_real_path
+
+    take = naturalness_takes(natural_dataset, "test")["walk"][0]
+    made = _on_real_path(tiny_generator, take, 0)
+    assert made.shape == take.joints.shape and np.isfinite(made).all()
+    real = root_path_from_joints(take.joints)[:, :2]
+    np.testing.assert_allclose(made[0, 0, [0, 2]], real[0], atol=1e-3)  # the start stays put
+    assert np.linalg.norm(made[:, 0, [0, 2]] - real, axis=1).max() < 0.3  # balance shifts it a little at most
+    assert np.linalg.norm(real[-1] - real[0]) > 1.0  # the take travels, so the check means something
 
 
 def test_cli_writes_the_report(tiny_generator, natural_dataset, classifier_file, tmp_path, capsys) -> None:

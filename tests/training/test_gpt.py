@@ -132,3 +132,30 @@ def test_train_clips_tokenised_at_every_phase(tiny_dataset: Path, vqvae: Path) -
     assert torch.equal(four.codes[2], vq.encode(x)[0]) and four.path[2].shape == (n, one.path[0].shape[1])
     with pytest.raises(ValueError, match="token offsets must be 1 ... 4"):
         _TokenSet(clips, vq, norm, "cpu", offsets=5)
+
+
+def test_rare_actions_are_drawn_more_often_with_action_balance(tiny_dataset: Path, vqvae: Path) -> None:
+    from motion_env.data.dataset import load_stats, read_split
+    from motion_env.models.normalizer import Normalizer
+    from motion_env.models.vqvae import VQVAE
+    from motion_env.training.gpt import _TokenSet
+
+    vq, _ = load_checkpoint(vqvae, "vqvae", VQVAEConfig, VQVAE)
+    clips, norm = read_split(tiny_dataset, "train"), Normalizer(*load_stats(tiny_dataset))
+    data = _TokenSet(clips, vq, norm, "cpu", offsets=2)
+    assert len(data) >= 6
+    # One clip (both its phases) is a rare action, the others a common one; the index names
+    # whole clips, so the second phase ("@1") reads its clip's row.
+    rare = data.names[0]
+    index = {n: {"label": "bye" if n == rare else "walk"} for n in data.names if "@" not in n}
+    data.set_labels(index)
+    assert data.labels[:2] == ["bye", "bye"] and set(data.labels[2:]) == {"walk"}
+    by_length = data.lengths / data.lengths.sum()
+    np.testing.assert_allclose(data.draw_weights(0.0), by_length)
+    balanced = data.draw_weights(1.0)  # each action drawn as often as the other
+    assert balanced.sum() == pytest.approx(1.0)
+    ratio = data.lengths[:2].mean() / data.lengths[2:].mean()  # per entry: its length / its action's entries
+    assert balanced[:2].sum() / balanced[2:].sum() == pytest.approx(ratio)
+    assert balanced[:2].sum() > 2 * by_length[:2].sum()
+    with pytest.raises(ValueError, match="action_balance"):
+        GPTTrainConfig(action_balance=1.5)
