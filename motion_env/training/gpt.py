@@ -61,7 +61,7 @@ class GPTTrainConfig(TrainConfig):
     # Rare actions (a goodbye: 26 train clips against 728 raised hands) are drawn more often: a
     # clip's chance is its length x (train clips of its action)^-action_balance (index.csv's
     # label; clips without one are one group); 0.5 is the caption adapter's square-root prior.
-    action_balance: Annotated[float, "[0, 1]"] = 0.0  # 0: clips drawn by length alone
+    action_balance: Annotated[float, "[0, 1]"] = 0.0  # A: length x (action clips)^-A; 0: length alone
     encoder: str = DEFAULT_TEXT_ENCODER  # text encoder name (motion_env.text.load_text_encoder)
     init: str | None = None  # GPT checkpoint (packaged ones too) a fresh run starts from: weights, config
 
