@@ -335,9 +335,8 @@ def _sample_batch(
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
     """A training batch ``(prev, path, targets, text, drop)`` of ``config.batch_size`` crops of at
     most a window: clips drawn in proportion to their length (rare actions more often with
-    ``config.action_balance``), a share of the crops at the clip's
-    first token, a random caption of the clip (jittered), and `drop` marking the samples trained
-    with the null text."""
+    ``config.action_balance``), a share of the crops at the clip's first token, a random caption
+    of the clip (jittered), and `drop` marking the samples trained with the null text."""
     L, B = model_config.block_size, config.batch_size
     idx = rng.choice(len(data), size=B, p=data.draw_weights(config.action_balance))
     span = np.maximum(data.lengths[idx] - L, 0)
