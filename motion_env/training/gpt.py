@@ -72,11 +72,19 @@ class GPTTrainConfig(TrainConfig):
 
 
 class _TokenSet:
-    """Every clip of a split as tokens + per-token path features + caption indices; with
-    `offsets` > 1 each clip also from its frames 1, 2, ... (one entry per phase)."""
+    """Every clip of a split as tokens + per-token path features + caption indices + action
+    labels (from the dataset's `index`, :func:`~motion_env.data.dataset.read_index`: a sub-clip
+    reads its whole clip's row; none: no labels); with `offsets` > 1 each clip also from its
+    frames 1, 2, ... (one entry per phase)."""
 
     def __init__(
-        self, clips: list[Any], vq: VQVAE, normalizer: Normalizer, device: Any, offsets: int = 1
+        self,
+        clips: list[Any],
+        vq: VQVAE,
+        normalizer: Normalizer,
+        device: Any,
+        offsets: int = 1,
+        index: dict[str, dict[str, str]] | None = None,
     ) -> None:
         from motion_env.models.path_features import token_path_features
         from motion_env.motion.trajectory import gait_free_path, root_path_from_joints
@@ -90,9 +98,11 @@ class _TokenSet:
         self.path: list[torch.Tensor] = []
         self.captions: list[list[str]] = []
         self.names: list[str] = []
+        self.labels: list[str] = []  # each entry's action ("" without one)
         for clip in clips:
             if not clip.captions:
                 continue
+            label = (index or {}).get(clip.name.split(":")[0], {}).get("label", "")
             # The generator's paths come from the path controller, which has no gait in them.
             whole = gait_free_path(root_path_from_joints(np.asarray(clip.joints, np.float32)))
             for o in range(offsets):
@@ -107,26 +117,16 @@ class _TokenSet:
                 self.path.append(torch.from_numpy(token_path_features(whole[o:], rate)[:n]))
                 self.captions.append(list(clip.captions))
                 self.names.append(clip.name if o == 0 else f"{clip.name}@{o}")
+                self.labels.append(label)
         if not self.codes:
             raise ValueError("no clip with at least two tokens and a caption")
         self.lengths = np.array([c.shape[0] for c in self.codes])  # tokens per clip
-        self.labels = [""] * len(self.codes)  # each entry's action (set_labels)
-        self._weights: dict[float, np.ndarray] = {}  # draw_weights by balance
-
-    def set_labels(self, index: dict[str, dict[str, str]]) -> None:
-        """Each entry's action from the dataset's index (name -> row; a sub-clip or another
-        phase reads its whole clip's row; unlisted: no label)."""
-        base = [n.split("@")[0].split(":")[0] for n in self.names]
-        self.labels = [index.get(b, {}).get("label", "") for b in base]
-        self._weights.clear()
 
     def draw_weights(self, balance: float) -> np.ndarray:
         """Each entry's chance of being drawn: its length x (entries of its action)^-balance."""
-        if balance not in self._weights:
-            _, group, counts = np.unique(self.labels, return_inverse=True, return_counts=True)
-            w = self.lengths * counts[group].astype(float) ** -balance
-            self._weights[balance] = w / w.sum()
-        return self._weights[balance]
+        _, group, counts = np.unique(self.labels, return_inverse=True, return_counts=True)
+        w = self.lengths * counts[group].astype(float) ** -balance
+        return w / w.sum()
 
     def __len__(self) -> int:
         return len(self.codes)
@@ -238,8 +238,9 @@ def train_gpt(
         model_config = config_from_dict(GPTConfig, init["config"])
     model_config = _model_config(model_config, vq, text_encoder)
     normalizer = loop.load_normalizer(data_dir)
-    train = _TokenSet(loop.load_split(data_dir, "train"), vq, normalizer, device, config.token_offsets)
-    train.set_labels(read_index(data_dir))
+    train_clips = loop.load_split(data_dir, "train")
+    train = _TokenSet(train_clips, vq, normalizer, device, config.token_offsets, read_index(data_dir))
+    draw = train.draw_weights(config.action_balance)
     val = _TokenSet(loop.load_split(data_dir, "val"), vq, normalizer, device)
     table, caption_row = _embed_captions(text_encoder, [train, val])
 
@@ -261,7 +262,8 @@ def train_gpt(
 
     def train_step(step: int) -> dict[str, float]:
         model.train()
-        prev, path, targets, text, drop = _sample_batch(train, rng, config, model_config, table, caption_row)
+        batch = _sample_batch(train, draw, rng, config, model_config, table, caption_row)
+        prev, path, targets, text, drop = batch
         _, loss = model(
             prev.to(device), path.to(device), text.to(device), targets.to(device), drop.to(device)
         )
@@ -327,6 +329,7 @@ def _optimizer(model: TokenGPT, lr: float) -> torch.optim.AdamW:
 
 def _sample_batch(
     data: _TokenSet,
+    draw: np.ndarray,
     rng: np.random.Generator,
     config: GPTTrainConfig,
     model_config: GPTConfig,
@@ -334,11 +337,11 @@ def _sample_batch(
     caption_row: dict[str, int],
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
     """A training batch ``(prev, path, targets, text, drop)`` of ``config.batch_size`` crops of at
-    most a window: clips drawn in proportion to their length (rare actions more often with
-    ``config.action_balance``), a share of the crops at the clip's first token, a random caption
-    of the clip (jittered), and `drop` marking the samples trained with the null text."""
+    most a window: entries drawn with the chances `draw` (:meth:`_TokenSet.draw_weights`), a
+    share of the crops at the clip's first token, a random caption of the clip (jittered), and
+    `drop` marking the samples trained with the null text."""
     L, B = model_config.block_size, config.batch_size
-    idx = rng.choice(len(data), size=B, p=data.draw_weights(config.action_balance))
+    idx = rng.choice(len(data), size=B, p=draw)
     span = np.maximum(data.lengths[idx] - L, 0)
     starts = np.where(rng.random(B) < config.start_crop, 0, (rng.random(B) * (span + 1)).astype(int))
     # Pad only to the longest crop of the batch: most clips are far shorter than the window.

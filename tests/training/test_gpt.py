@@ -142,13 +142,13 @@ def test_rare_actions_are_drawn_more_often_with_action_balance(tiny_dataset: Pat
 
     vq, _ = load_checkpoint(vqvae, "vqvae", VQVAEConfig, VQVAE)
     clips, norm = read_split(tiny_dataset, "train"), Normalizer(*load_stats(tiny_dataset))
-    data = _TokenSet(clips, vq, norm, "cpu", offsets=2)
-    assert len(data) >= 6
+    assert set(_TokenSet(clips, vq, norm, "cpu").labels) == {""}  # without an index: no labels
     # One clip (both its phases) is a rare action, the others a common one; the index names
-    # whole clips, so the second phase ("@1") reads its clip's row.
-    rare = data.names[0]
-    index = {n: {"label": "bye" if n == rare else "walk"} for n in data.names if "@" not in n}
-    data.set_labels(index)
+    # whole clips, so the second phase reads its clip's row.
+    rare = next(c.name for c in clips if c.captions)
+    index = {c.name: {"label": "bye" if c.name == rare else "walk"} for c in clips}
+    data = _TokenSet(clips, vq, norm, "cpu", offsets=2, index=index)
+    assert len(data) >= 6
     assert data.labels[:2] == ["bye", "bye"] and set(data.labels[2:]) == {"walk"}
     by_length = data.lengths / data.lengths.sum()
     np.testing.assert_allclose(data.draw_weights(0.0), by_length)
