@@ -16,6 +16,9 @@ What is measured (the definitions of ``docs/metrics.md``):
   (:meth:`PathController.run <motion_env.models.controller.PathController.run>`, 200 frames, each
   character on its own timed route) at B = 1 and 64 characters, on each of its frame backends
   (numpy and torch on the CPU: where ``frame_backend="auto"`` switches from one to the other);
+- GPT decoding: milliseconds per token of the body GPT's sampling alone
+  (:meth:`TokenGPT.generate <motion_env.models.gpt.TokenGPT.generate>`, 50 tokens, the window
+  sliding) at B = 1 and 64 characters, on each of its step backends (:attr:`TokenGPT.step_backend`);
 - vector-env throughput: env steps per second of the natively batched vector env
   (``vectorization_mode="vector_entry_point"``, one frame per step) with N = 1, 16, 64 characters,
   over ``vector_steps`` steps after a warm-up, in the same two cases.
@@ -164,6 +167,32 @@ def time_controller(generator: Any, batch: int, backend: str, frames: int = 200,
         controller.frame_backend = saved
     return {"batch": batch, "backend": backend, "ms_per_frame": float(np.median(times)),
             "cpu": {"ms_per_frame": float(np.median(cpu))}}  # fmt: skip
+
+
+def time_gpt(generator: Any, batch: int, backend: str, tokens: int = 50, runs: int = 5) -> dict:
+    """Milliseconds per token of the body GPT's sampling alone for `batch` characters on step
+    backend `backend` ("numpy" or "torch", :attr:`TokenGPT.step_backend`): the median of `runs`
+    generations of `tokens` tokens (the bench caption, path features of a steady walk) after one
+    warm-up."""
+    gpt = generator.pipeline.gpt
+    text = torch.as_tensor(generator.encode_text([BENCH_TEXT] * batch), device=gpt.head.weight.device)
+    path = torch.zeros(batch, tokens, gpt.config.path_dim, device=text.device)
+    path[..., 1] = 0.25  # forward, about a walk's pace per token
+    saved, gpt.step_backend = gpt.step_backend, backend
+    times, cpu = [], []
+    try:
+        for run in range(runs + 1):
+            gens = [torch.Generator().manual_seed(run * batch + b) for b in range(batch)]
+            w0, c0 = _clock()
+            gpt.generate(text, path, tokens, gens)
+            w1, c1 = _clock()
+            if run:  # the first is the warm-up
+                times.append((w1 - w0) * 1000.0 / tokens)
+                cpu.append((c1 - c0) * 1000.0 / tokens)
+    finally:
+        gpt.step_backend = saved
+    return {"batch": batch, "backend": backend, "ms_per_token": float(np.median(times)),
+            "cpu": {"ms_per_token": float(np.median(cpu))}}  # fmt: skip
 
 
 def _routes(batch: int) -> list[np.ndarray]:
@@ -363,6 +392,9 @@ def run_bench(
         results["controller"] = [
             calibrated(time_controller, gen, b, backend) for b in (1, 64) for backend in ("numpy", "torch")
         ]
+        results["gpt"] = [
+            calibrated(time_gpt, gen, b, backend) for b in (1, 64) for backend in ("numpy", "torch")
+        ]
     agents = bench_agents(gen)
     results["lookahead"] = "head" if "learner_exact" in agents else "exact"
     if env_steps > 0:
@@ -425,6 +457,9 @@ def format_results(results: dict[str, Any]) -> str:
     for row in results.get("controller", []):
         label = f"controller roll-out, B={row['batch']}, {row['backend']}"
         lines.append(_row(label, row["ms_per_frame"], None, "ms/frame", 3, _quiet(row, "ms_per_frame")))
+    for row in results.get("gpt", []):
+        label = f"GPT decoding, B={row['batch']}, {row['backend']}"
+        lines.append(_row(label, row["ms_per_token"], None, "ms/token", 3, _quiet(row, "ms_per_token")))
     for agent, label in AGENT_LABELS.items():
         env = results.get("env_step_ms" if agent == "route" else f"env_step_ms_{agent}")
         if env:

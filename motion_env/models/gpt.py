@@ -35,9 +35,13 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from motion_env.models.gpt_numpy import NUMPY_MAX_ROWS, NumpyStep
 from motion_env.models.path_features import D_PATH
 from motion_env.models.sampling import SamplingConfig, sample_tokens
 from motion_env.motion.validation import CheckedConfig, PositiveInt
+
+# What TokenGPT.step_backend may be.
+STEP_BACKENDS = ("auto", "torch", "numpy")
 
 
 @dataclass
@@ -186,6 +190,11 @@ class TokenGPT(nn.Module):
         for name, p in self.named_parameters():
             if name.endswith("proj.weight") and "text" not in name or name.endswith("mlp.2.weight"):
                 nn.init.normal_(p, std=0.02 / math.sqrt(2 * c.n_layer))  # GPT-2's residual scaling
+        self._numpy_step = NumpyStep()
+        # Where a decoding step of one new token runs (STEP_BACKENDS): "auto" (numpy for a few rows
+        # on the CPU without gradients, in eval mode, else torch), "torch" (any device, the
+        # module's own forward pass), or "numpy"; the two agree to float32 rounding.
+        self.step_backend = "auto"
 
     @staticmethod
     def _init_weights(module: nn.Module) -> None:
@@ -212,14 +221,17 @@ class TokenGPT(nn.Module):
             cond = torch.where(drop[:, None], self.null_text.expand_as(cond), cond)
         return cond
 
-    def _embed(
-        self, tokens: torch.Tensor, path: torch.Tensor, text: torch.Tensor, pos: torch.Tensor
-    ) -> torch.Tensor:
+    def _check_path(self, tokens: torch.Tensor, path: torch.Tensor) -> None:
         if path.shape[:2] != tokens.shape or path.shape[-1] != self.config.path_dim:
             raise ValueError(
                 f"path features must be (B, N, {self.config.path_dim}) like tokens {tuple(tokens.shape)}, "
                 f"got {tuple(path.shape)}"
             )
+
+    def _embed(
+        self, tokens: torch.Tensor, path: torch.Tensor, text: torch.Tensor, pos: torch.Tensor
+    ) -> torch.Tensor:
+        self._check_path(tokens, path)
         fc, _, out = self.path_mlp  # self.path_mlp(path), layer by layer (see _linear)
         path_x = _linear(out, F.gelu(_linear(fc, path)))
         x = (
@@ -376,16 +388,42 @@ class TokenGPT(nn.Module):
             raise ValueError(f"cannot append {N} tokens at once to a window of {block}")
         if cache.length + N > block:
             self._reprime(cache, min(block // 2, block - N))
-        pos = cache.pos[:, None] + torch.arange(N, device=tokens.device)[None]
-        x = self._embed(tokens, path.to(cache.text.dtype), cache.text, pos)
         valid = torch.ones(tokens.shape, dtype=torch.bool, device=tokens.device)
-        logits, kv = self._run(x, valid, cache.kv or None, cache.valid)
+        if N == 1 and self._on_numpy(tokens.shape[0]):
+            self._check_path(tokens, path)
+            logits, kv = self._numpy_step(self, cache, tokens, path)
+        else:
+            pos = cache.pos[:, None] + torch.arange(N, device=tokens.device)[None]
+            x = self._embed(tokens, path.to(cache.text.dtype), cache.text, pos)
+            logits, kv = self._run(x, valid, cache.kv or None, cache.valid)
         cache.kv = kv
         cache.valid = torch.cat([cache.valid, valid], dim=1)
         cache.pos = cache.pos + N
         cache.tokens = torch.cat([cache.tokens, tokens], dim=1)
         cache.path = torch.cat([cache.path, path.to(cache.path.dtype)], dim=1)
         return logits
+
+    def _on_numpy(self, rows: int) -> bool:
+        """Whether a step of one new token for `rows` rows runs on numpy (:attr:`step_backend`)."""
+        backend = self.step_backend
+        if backend not in STEP_BACKENDS:
+            raise ValueError(f"TokenGPT.step_backend must be one of {STEP_BACKENDS}, got {backend!r}")
+        weight = self.head.weight
+        numpy_ok = (
+            not torch.is_grad_enabled()
+            and not self.training
+            and weight.device.type == "cpu"
+            and weight.dtype == torch.float32
+        )
+        if backend == "numpy" and not numpy_ok:
+            raise ValueError(
+                "TokenGPT.step_backend='numpy' runs float32 steps without gradients, in eval mode, on "
+                f"the CPU only (gradients {'on' if torch.is_grad_enabled() else 'off'}, training "
+                f"{self.training}, {weight.dtype} on {weight.device})"
+            )
+        if backend == "torch" or not numpy_ok:
+            return False
+        return backend == "numpy" or rows <= NUMPY_MAX_ROWS
 
     @torch.no_grad()
     def step(

@@ -89,3 +89,21 @@ def test_the_controller_is_timed_on_both_frame_backends(random_generator) -> Non
     }  # fmt: skip
     text = bench.format_results(results)
     assert "controller roll-out, B=2, numpy" in text and "controller roll-out, B=2, torch" in text
+
+
+def test_the_gpt_is_timed_on_both_step_backends(random_generator) -> None:
+    """The GPT's decoding alone, numpy and torch, its backend setting left as it was, and a row per
+    backend in the table."""
+    gpt = random_generator.pipeline.gpt
+    rows = [bench.time_gpt(random_generator, 2, backend, tokens=4, runs=1) for backend in ("numpy", "torch")]
+    assert [r["backend"] for r in rows] == ["numpy", "torch"] and all(r["ms_per_token"] > 0 for r in rows)
+    assert gpt.step_backend == "auto"
+    results = {
+        "model": "m", "untrained": False, "device": "cpu",
+        "hardware": {"cpu": "x86_64", "cpu_count": 2, "torch_threads": 1},
+        "clip_latency_ms": {"median": 1.0, "p90": 1.0, "runs": 1, "frames": 200},
+        "stream": [], "stream_lookahead_frames": 20, "control_delay_frames": 4,
+        "gpt": [{**r, "calibration_ms": 32.0, "quiet": {"ms_per_token": 0.5}} for r in rows],
+    }  # fmt: skip
+    text = bench.format_results(results)
+    assert "GPT decoding, B=2, numpy" in text and "GPT decoding, B=2, torch" in text

@@ -1,0 +1,178 @@
+"""The body GPT's decoding step on numpy: one new token for a few rows, on the CPU without
+gradients (:meth:`TokenGPT._append <motion_env.models.gpt.TokenGPT._append>` chooses it).
+
+A token step at one row is some seventy operations on vectors of 192 to 1,024 numbers, and
+torch's cost per operation (a few microseconds each, the exact GELU and the masks' bookkeeping
+more) was most of it: 0.93 ms a token at one row against 0.30 ms here, with the weights (8 MB)
+staying in the cache between the tokens of a clip. The step is the module's forward pass written
+out for one query: the same embeddings, LayerNorms, attention over the cached keys and values, and
+MLPs, with two exact rearrangements that save operations, each LayerNorm's scale and shift folded
+into the product after it, and the attention's 1 / sqrt(head size) into the query's rows. The
+logits agree with torch's to float32 rounding (``tests/models/test_gpt_numpy.py``), so a token
+drawn from them is the same unless a uniform draw falls within that rounding of a token's boundary.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, NamedTuple
+
+import numpy as np
+import torch
+
+from motion_env.models.frame_ops import NumpyOps
+
+if TYPE_CHECKING:
+    from motion_env.models.gpt import GPTCache, TokenGPT
+
+# The most rows (characters, or twice that with guidance) a step runs on numpy; above it torch's
+# matrix products win (`motion-env bench`'s GPT rows).
+NUMPY_MAX_ROWS = 8
+
+
+class _Layer(NamedTuple):
+    """One block's weights, transposed to (in, out), LayerNorms folded in."""
+
+    qkv: np.ndarray
+    qkv_b: np.ndarray
+    proj: np.ndarray
+    proj_b: np.ndarray
+    fc: np.ndarray
+    fc_b: np.ndarray
+    out: np.ndarray
+    out_b: np.ndarray
+
+
+class _Weights(NamedTuple):
+    tok_emb: np.ndarray
+    pos_emb: np.ndarray
+    path_fc: np.ndarray
+    path_fc_b: np.ndarray
+    path_out: np.ndarray
+    path_out_b: np.ndarray
+    layers: tuple[_Layer, ...]
+    head: np.ndarray
+    head_b: np.ndarray
+    eps: np.float32
+    mean: np.ndarray  # (C,) 1 / C each: a LayerNorm's means as one product
+
+
+def _np(t: torch.Tensor) -> np.ndarray:
+    return t.detach().cpu().double().numpy()
+
+
+def _folded(
+    norm: torch.nn.LayerNorm, linear: torch.nn.Linear, scale: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(W^T, b) of ``linear(norm(x))`` taking the normalised x (zero mean, unit variance), folded
+    in float64: W diag(gamma) and W beta + b, the output columns times `scale` if given."""
+    weight, gamma, beta = _np(linear.weight), _np(norm.weight), _np(norm.bias)
+    bias = _np(linear.bias) if linear.bias is not None else np.zeros(weight.shape[0])
+    w_t = (weight * gamma[None]).T
+    b = weight @ beta + bias
+    if scale is not None:
+        w_t, b = w_t * scale[None], b * scale
+    return np.ascontiguousarray(w_t, np.float32), b.astype(np.float32)
+
+
+def _plain(linear: torch.nn.Linear) -> tuple[np.ndarray, np.ndarray]:
+    return np.ascontiguousarray(_np(linear.weight).T, np.float32), _np(linear.bias).astype(np.float32)
+
+
+def _prepare(gpt: TokenGPT) -> _Weights:
+    c = gpt.config
+    head_dim = c.n_embd // c.n_head
+    # The query's third of the qkv product scaled by 1 / sqrt(head size), as attention would.
+    q_scale = np.ones(3 * c.n_embd)
+    q_scale[: c.n_embd] = 1.0 / math.sqrt(head_dim)
+    layers = []
+    for block in gpt.blocks:
+        fc, _, out, _ = block.mlp
+        layers.append(
+            _Layer(
+                *_folded(block.ln_1, block.attn.qkv, q_scale),
+                *_plain(block.attn.proj),
+                *_folded(block.ln_2, fc),
+                *_plain(out),
+            )
+        )
+    path_fc, _, path_out = gpt.path_mlp
+    (path_fc_w, path_fc_b), (path_out_w, path_out_b) = _plain(path_fc), _plain(path_out)
+    head, head_b = _folded(gpt.ln_f, gpt.head)
+    epsilons = {m.eps for m in gpt.modules() if isinstance(m, torch.nn.LayerNorm)}
+    if len(epsilons) != 1:
+        raise ValueError(f"the numpy GPT step needs one LayerNorm eps, the model has {sorted(epsilons)}")
+    return _Weights(
+        tok_emb=gpt.tok_emb.weight.detach().cpu().numpy().astype(np.float32),
+        pos_emb=gpt.pos_emb.weight.detach().cpu().numpy().astype(np.float32),
+        path_fc=path_fc_w,
+        path_fc_b=path_fc_b,
+        path_out=path_out_w,
+        path_out_b=path_out_b,
+        layers=tuple(layers),
+        head=head,
+        head_b=head_b,
+        eps=np.float32(epsilons.pop()),
+        mean=np.full(c.n_embd, 1.0 / c.n_embd, np.float32),
+    )
+
+
+class NumpyStep:
+    """A TokenGPT's one-token step on numpy; holds the weights prepared for it, made again when a
+    parameter changes in place (the version counters move with every optimiser step or load)."""
+
+    def __init__(self) -> None:
+        self._params: tuple[torch.Tensor, ...] = ()
+        self._weights: tuple[tuple[int, ...], _Weights] | None = None
+
+    def weights(self, gpt: TokenGPT) -> _Weights:
+        # Listing a module's parameters costs a third of a step: the list is kept, and only the
+        # version counters are read each step.
+        if not self._params:
+            self._params = tuple(gpt.parameters())
+        key = tuple(p._version for p in self._params)
+        if self._weights is None or self._weights[0] != key:
+            self._weights = (key, _prepare(gpt))
+        return self._weights[1]
+
+    @staticmethod
+    def _normed(x: np.ndarray, w: _Weights) -> np.ndarray:
+        """(R, C) -> zero mean, unit variance per row (a LayerNorm without its affine part)."""
+        d = x - (x @ w.mean)[:, None]
+        return d / np.sqrt(((d * d) @ w.mean)[:, None] + w.eps)
+
+    def __call__(
+        self, gpt: TokenGPT, cache: GPTCache, tokens: torch.Tensor, path: torch.Tensor
+    ) -> tuple[torch.Tensor, list[tuple[torch.Tensor, torch.Tensor]]]:
+        """Logits (R, 1, V) of one new input per row ((R, 1) `tokens`, (R, 1, path_dim) `path`)
+        after `cache`'s past, and the keys and values with it appended (the cache is not
+        changed: :meth:`TokenGPT._append` does its bookkeeping as for torch's step)."""
+        w = self.weights(gpt)
+        rows, heads = tokens.shape[0], gpt.config.n_head
+        head_dim = gpt.config.n_embd // heads
+        p = path[:, 0].detach().numpy().astype(np.float32, copy=False)
+        path_x = NumpyOps.gelu(p @ w.path_fc + w.path_fc_b) @ w.path_out + w.path_out_b
+        x = (
+            w.tok_emb[tokens[:, 0].numpy()]
+            + path_x
+            + cache.text.detach().numpy()
+            + w.pos_emb[cache.pos.numpy()]
+        )  # (R, C)
+        # Additive mask over the cached positions and the new one (which always sees itself).
+        seen = np.concatenate([cache.valid.numpy(), np.ones((rows, 1), bool)], 1)
+        mask = np.where(seen, np.float32(0.0), np.float32(-np.inf))[:, None, None]  # (R, 1, 1, L+1)
+        kvs = []
+        for i, layer in enumerate(w.layers):
+            qkv = self._normed(x, w) @ layer.qkv + layer.qkv_b
+            q, k, v = qkv.reshape(rows, 3, heads, 1, head_dim).transpose(1, 0, 2, 3, 4)  # (R, H, 1, hd)
+            if cache.kv:
+                k = np.concatenate([cache.kv[i][0].numpy(), k], 2)  # (R, H, L+1, hd)
+                v = np.concatenate([cache.kv[i][1].numpy(), v], 2)
+            scores = q @ k.swapaxes(-1, -2) + mask  # (R, H, 1, L+1)
+            weights = np.exp(scores - scores.max(-1, keepdims=True))
+            y = (weights @ v) / weights.sum(-1, keepdims=True)  # (R, H, 1, hd)
+            x = x + y.reshape(rows, -1) @ layer.proj + layer.proj_b
+            x = x + NumpyOps.gelu(self._normed(x, w) @ layer.fc + layer.fc_b) @ layer.out + layer.out_b
+            kvs.append((torch.from_numpy(np.ascontiguousarray(k)), torch.from_numpy(np.ascontiguousarray(v))))
+        logits = self._normed(x, w) @ w.head + w.head_b
+        return torch.from_numpy(logits)[:, None], kvs
