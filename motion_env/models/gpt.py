@@ -248,8 +248,11 @@ class TokenGPT(nn.Module):
         new_valid: torch.Tensor,
         past: list[tuple[torch.Tensor, torch.Tensor]] | None,
         past_valid: torch.Tensor | None,
+        decoding: bool = False,
     ) -> tuple[torch.Tensor, list[tuple[torch.Tensor, torch.Tensor]]]:
-        """Transformer over new inputs x (B, N, C) after an optional cached past; -> logits (B, N, V)."""
+        """Transformer over new inputs x (B, N, C) after an optional cached past; -> logits (B, N, V).
+        With `decoding` (the window re-primed during decoding) a past-less run may take the numpy
+        step's backend (:meth:`_on_numpy`); training and full forward passes stay on torch."""
         B, N, _ = x.shape
         if past and N == 1:
             # One new input (a decoding step): it sees the valid cached positions and itself.
@@ -267,6 +270,8 @@ class TokenGPT(nn.Module):
         # The additive form scaled_dot_product_attention makes of a bool mask, made once for
         # all the layers instead of once per layer (the same numbers).
         mask = torch.where(mask, 0.0, -math.inf).to(x.dtype)
+        if decoding and not past and self._on_numpy(B):
+            return self._numpy_step.run(self, x, mask)
         kvs = []
         for i, block in enumerate(self.blocks):
             x, kv = block(x, mask, past[i] if past else None)
@@ -377,7 +382,7 @@ class TokenGPT(nn.Module):
         valid = cols >= (keep - count)[:, None]  # (R, keep)
         pos = (cols - (keep - count)[:, None]).clamp_min(0)
         x = self._embed(tokens, path, cache.text, pos)
-        _, kv = self._run(x, valid, None, None)
+        _, kv = self._run(x, valid, None, None, decoding=True)
         cache.kv, cache.valid, cache.pos, cache.tokens, cache.path = kv, valid, count.clone(), tokens, path
 
     def _append(self, cache: GPTCache, tokens: torch.Tensor, path: torch.Tensor) -> torch.Tensor:

@@ -137,19 +137,54 @@ class NumpyStep:
 
     @staticmethod
     def _normed(x: np.ndarray, w: _Weights) -> np.ndarray:
-        """(R, C) -> zero mean, unit variance per row (a LayerNorm without its affine part)."""
-        d = x - (x @ w.mean)[:, None]
-        return d / np.sqrt(((d * d) @ w.mean)[:, None] + w.eps)
+        """(..., C) -> zero mean, unit variance over C (a LayerNorm without its affine part)."""
+        d = x - (x @ w.mean)[..., None]
+        return d / np.sqrt(((d * d) @ w.mean)[..., None] + w.eps)
+
+    def _blocks(
+        self,
+        gpt: TokenGPT,
+        x: np.ndarray,
+        mask: np.ndarray,
+        past: list[tuple[torch.Tensor, torch.Tensor]] | None,
+    ) -> tuple[torch.Tensor, list[tuple[torch.Tensor, torch.Tensor]]]:
+        """The transformer over new inputs x (R, N, C) after an optional cached past, each query
+        seeing the keys where the additive `mask` (R, 1, N, L+N) is 0: logits (R, N, V) and every
+        layer's keys and values (R, H, L+N, hd), as torch tensors."""
+        w = self.weights(gpt)
+        rows, n, heads = x.shape[0], x.shape[1], gpt.config.n_head
+        head_dim = gpt.config.n_embd // heads
+        kvs = []
+        for i, layer in enumerate(w.layers):
+            qkv = self._normed(x, w) @ layer.qkv + layer.qkv_b  # (R, N, 3C)
+            q, k, v = qkv.reshape(rows, n, 3, heads, head_dim).transpose(2, 0, 3, 1, 4)  # (R, H, N, hd)
+            if past:
+                k = np.concatenate([past[i][0].numpy(), k], 2)  # (R, H, L+N, hd)
+                v = np.concatenate([past[i][1].numpy(), v], 2)
+            scores = q @ k.swapaxes(-1, -2) + mask  # (R, H, N, L+N)
+            weights = np.exp(scores - scores.max(-1, keepdims=True))
+            y = (weights @ v) / weights.sum(-1, keepdims=True)  # (R, H, N, hd)
+            x = x + y.transpose(0, 2, 1, 3).reshape(rows, n, -1) @ layer.proj + layer.proj_b
+            x = x + NumpyOps.gelu(self._normed(x, w) @ layer.fc + layer.fc_b) @ layer.out + layer.out_b
+            kvs.append((torch.from_numpy(np.ascontiguousarray(k)), torch.from_numpy(np.ascontiguousarray(v))))
+        return torch.from_numpy(self._normed(x, w) @ w.head + w.head_b), kvs
+
+    def run(
+        self, gpt: TokenGPT, x: torch.Tensor, mask: torch.Tensor
+    ) -> tuple[torch.Tensor, list[tuple[torch.Tensor, torch.Tensor]]]:
+        """:meth:`TokenGPT._run` without a past: embedded inputs x (R, N, C) and the additive
+        mask (R, 1, N, N) it made; logits (R, N, V) and the keys and values (re-priming the
+        window)."""
+        return self._blocks(gpt, x.detach().numpy(), mask.numpy(), None)
 
     def __call__(
         self, gpt: TokenGPT, cache: GPTCache, tokens: torch.Tensor, path: torch.Tensor
     ) -> tuple[torch.Tensor, list[tuple[torch.Tensor, torch.Tensor]]]:
         """Logits (R, 1, V) of one new input per row ((R, 1) `tokens`, (R, 1, path_dim) `path`)
         after `cache`'s past, and the keys and values with it appended (the cache is not
-        changed: :meth:`TokenGPT._append` does its bookkeeping as for torch's step)."""
+        changed: :meth:`TokenGPT._append` does its bookkeeping as for torch's step). The
+        embedding and the mask are made here too: on torch they would cost more than the rest."""
         w = self.weights(gpt)
-        rows, heads = tokens.shape[0], gpt.config.n_head
-        head_dim = gpt.config.n_embd // heads
         p = path[:, 0].detach().numpy().astype(np.float32, copy=False)
         path_x = NumpyOps.gelu(p @ w.path_fc + w.path_fc_b) @ w.path_out + w.path_out_b
         x = (
@@ -159,20 +194,6 @@ class NumpyStep:
             + w.pos_emb[cache.pos.numpy()]
         )  # (R, C)
         # Additive mask over the cached positions and the new one (which always sees itself).
-        seen = np.concatenate([cache.valid.numpy(), np.ones((rows, 1), bool)], 1)
+        seen = np.concatenate([cache.valid.numpy(), np.ones((len(x), 1), bool)], 1)
         mask = np.where(seen, np.float32(0.0), np.float32(-np.inf))[:, None, None]  # (R, 1, 1, L+1)
-        kvs = []
-        for i, layer in enumerate(w.layers):
-            qkv = self._normed(x, w) @ layer.qkv + layer.qkv_b
-            q, k, v = qkv.reshape(rows, 3, heads, 1, head_dim).transpose(1, 0, 2, 3, 4)  # (R, H, 1, hd)
-            if cache.kv:
-                k = np.concatenate([cache.kv[i][0].numpy(), k], 2)  # (R, H, L+1, hd)
-                v = np.concatenate([cache.kv[i][1].numpy(), v], 2)
-            scores = q @ k.swapaxes(-1, -2) + mask  # (R, H, 1, L+1)
-            weights = np.exp(scores - scores.max(-1, keepdims=True))
-            y = (weights @ v) / weights.sum(-1, keepdims=True)  # (R, H, 1, hd)
-            x = x + y.reshape(rows, -1) @ layer.proj + layer.proj_b
-            x = x + NumpyOps.gelu(self._normed(x, w) @ layer.fc + layer.fc_b) @ layer.out + layer.out_b
-            kvs.append((torch.from_numpy(np.ascontiguousarray(k)), torch.from_numpy(np.ascontiguousarray(v))))
-        logits = self._normed(x, w) @ w.head + w.head_b
-        return torch.from_numpy(logits)[:, None], kvs
+        return self._blocks(gpt, x[:, None], mask, cache.kv)
