@@ -145,6 +145,29 @@ def time_clip(generator: Any, runs: int = 10, num_frames: int = 200, warmup: int
     return {**_percentiles(times, (90,)), "runs": runs, "frames": num_frames, "cpu": _percentiles(cpu, (90,))}
 
 
+def _per_unit(
+    model: Any, attr: str, backend: str, call: Any, units: int, runs: int, key: str, batch: int
+) -> dict:
+    """Milliseconds per unit (frame, token) of `runs` calls ``call(run)`` (run = 1..runs) of `units`
+    units each, after ``call(0)`` (a warm-up), with ``model.<attr>`` (a backend switch) set to
+    `backend` and put back after; the median under `key`, wall and CPU time."""
+    saved = getattr(model, attr)
+    setattr(model, attr, backend)
+    times, cpu = [], []
+    try:
+        for run in range(runs + 1):
+            w0, c0 = _clock()
+            call(run)
+            w1, c1 = _clock()
+            if run:
+                times.append((w1 - w0) * 1000.0 / units)
+                cpu.append((c1 - c0) * 1000.0 / units)
+    finally:
+        setattr(model, attr, saved)
+    return {"batch": batch, "backend": backend, key: float(np.median(times)),
+            "cpu": {key: float(np.median(cpu))}}  # fmt: skip
+
+
 def time_controller(generator: Any, batch: int, backend: str, frames: int = 200, runs: int = 5) -> dict:
     """Milliseconds per frame of the path controller's roll-out alone for `batch` characters on
     frame backend `backend` ("numpy" or "torch", :attr:`PathController.frame_backend`): the median
@@ -152,21 +175,11 @@ def time_controller(generator: Any, batch: int, backend: str, frames: int = 200,
     controller = generator.pipeline.controller
     text = torch.as_tensor(generator.encode_text([BENCH_TEXT] * batch), device=controller.device)
     state = controller.init_state(text, _routes(batch))
-    saved, controller.frame_backend = controller.frame_backend, backend
-    times, cpu = [], []
-    try:
-        with torch.no_grad():
-            controller.run(state, frames)
-            for _ in range(runs):
-                w0, c0 = _clock()
-                controller.run(state, frames)
-                w1, c1 = _clock()
-                times.append((w1 - w0) * 1000.0 / frames)
-                cpu.append((c1 - c0) * 1000.0 / frames)
-    finally:
-        controller.frame_backend = saved
-    return {"batch": batch, "backend": backend, "ms_per_frame": float(np.median(times)),
-            "cpu": {"ms_per_frame": float(np.median(cpu))}}  # fmt: skip
+    with torch.no_grad():
+        return _per_unit(
+            controller, "frame_backend", backend, lambda run: controller.run(state, frames), frames, runs,
+            "ms_per_frame", batch,
+        )  # fmt: skip
 
 
 def time_gpt(generator: Any, batch: int, backend: str, tokens: int = 50, runs: int = 5) -> dict:
@@ -178,21 +191,12 @@ def time_gpt(generator: Any, batch: int, backend: str, tokens: int = 50, runs: i
     text = torch.as_tensor(generator.encode_text([BENCH_TEXT] * batch), device=gpt.head.weight.device)
     path = torch.zeros(batch, tokens, gpt.config.path_dim, device=text.device)
     path[..., 1] = 0.25  # forward, about a walk's pace per token
-    saved, gpt.step_backend = gpt.step_backend, backend
-    times, cpu = [], []
-    try:
-        for run in range(runs + 1):
-            gens = [torch.Generator().manual_seed(run * batch + b) for b in range(batch)]
-            w0, c0 = _clock()
-            gpt.generate(text, path, tokens, gens)
-            w1, c1 = _clock()
-            if run:  # the first is the warm-up
-                times.append((w1 - w0) * 1000.0 / tokens)
-                cpu.append((c1 - c0) * 1000.0 / tokens)
-    finally:
-        gpt.step_backend = saved
-    return {"batch": batch, "backend": backend, "ms_per_token": float(np.median(times)),
-            "cpu": {"ms_per_token": float(np.median(cpu))}}  # fmt: skip
+
+    def generate(run: int) -> None:
+        gens = [torch.Generator().manual_seed(run * batch + b) for b in range(batch)]
+        gpt.generate(text, path, tokens, gens)
+
+    return _per_unit(gpt, "step_backend", backend, generate, tokens, runs, "ms_per_token", batch)
 
 
 def _routes(batch: int) -> list[np.ndarray]:

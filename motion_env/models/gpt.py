@@ -191,9 +191,9 @@ class TokenGPT(nn.Module):
             if name.endswith("proj.weight") and "text" not in name or name.endswith("mlp.2.weight"):
                 nn.init.normal_(p, std=0.02 / math.sqrt(2 * c.n_layer))  # GPT-2's residual scaling
         self._numpy_step = NumpyStep()
-        # Where a decoding step of one new token runs (STEP_BACKENDS): "auto" (numpy for a few rows
-        # on the CPU without gradients, in eval mode, else torch), "torch" (any device, the
-        # module's own forward pass), or "numpy"; the two agree to float32 rounding.
+        # Where a decoding step (a new token, the window re-primed) runs (STEP_BACKENDS): "auto"
+        # (numpy for a few rows on the CPU without gradients, in eval mode, else torch), "torch"
+        # (any device, the module's own forward pass), or "numpy"; the two agree to float32 rounding.
         self.step_backend = "auto"
 
     @staticmethod
@@ -409,7 +409,8 @@ class TokenGPT(nn.Module):
         return logits
 
     def _on_numpy(self, rows: int) -> bool:
-        """Whether a step of one new token for `rows` rows runs on numpy (:attr:`step_backend`)."""
+        """Whether a decoding step for `rows` rows (a new token, or the window re-primed) runs on
+        numpy (:attr:`step_backend`)."""
         backend = self.step_backend
         if backend not in STEP_BACKENDS:
             raise ValueError(f"TokenGPT.step_backend must be one of {STEP_BACKENDS}, got {backend!r}")

@@ -1,5 +1,6 @@
-"""The body GPT's decoding step on numpy: one new token for a few rows, on the CPU without
-gradients (:meth:`TokenGPT._append <motion_env.models.gpt.TokenGPT._append>` chooses it).
+"""The body GPT's decoding on numpy: one new token for a few rows, or the window re-primed, on the
+CPU without gradients (:meth:`TokenGPT._append <motion_env.models.gpt.TokenGPT._append>` and
+:meth:`TokenGPT._run <motion_env.models.gpt.TokenGPT._run>` choose it).
 
 A token step at one row is some seventy operations on vectors of 192 to 1,024 numbers, and
 torch's cost per operation (a few microseconds each, the exact GELU and the masks' bookkeeping

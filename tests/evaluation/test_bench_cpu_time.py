@@ -70,40 +70,25 @@ def test_exact_look_ahead_is_timed_beside_the_head(random_generator) -> None:
     assert "vector env, N=64, new targets, exact look-ahead" in text
 
 
-def test_the_controller_is_timed_on_both_frame_backends(random_generator) -> None:
-    """The controller's roll-out alone, numpy and torch (where "auto" switches), its backend
-    setting left as it was, and a row per backend and size in the table."""
-    controller = random_generator.pipeline.controller
-    rows = [
-        bench.time_controller(random_generator, 2, backend, frames=5, runs=1)
-        for backend in ("numpy", "torch")
-    ]
-    assert [r["backend"] for r in rows] == ["numpy", "torch"] and all(r["ms_per_frame"] > 0 for r in rows)
-    assert controller.frame_backend == "auto"
+@pytest.mark.parametrize(
+    ("timer", "model", "switch", "key", "label"),
+    [
+        (bench.time_controller, "controller", "frame_backend", "ms_per_frame", "controller roll-out"),
+        (bench.time_gpt, "gpt", "step_backend", "ms_per_token", "GPT decoding"),
+    ],
+)
+def test_a_model_is_timed_on_both_backends(random_generator, timer, model, switch, key, label) -> None:
+    """The controller's roll-out and the GPT's decoding alone, numpy and torch (where "auto"
+    switches), the backend setting left as it was, and a row per backend and size in the table."""
+    rows = [timer(random_generator, 2, backend, 4, runs=1) for backend in ("numpy", "torch")]
+    assert [r["backend"] for r in rows] == ["numpy", "torch"] and all(r[key] > 0 for r in rows)
+    assert getattr(getattr(random_generator.pipeline, model), switch) == "auto"
     results = {
         "model": "m", "untrained": False, "device": "cpu",
         "hardware": {"cpu": "x86_64", "cpu_count": 2, "torch_threads": 1},
         "clip_latency_ms": {"median": 1.0, "p90": 1.0, "runs": 1, "frames": 200},
         "stream": [], "stream_lookahead_frames": 20, "control_delay_frames": 4,
-        "controller": [{**r, "calibration_ms": 32.0, "quiet": {"ms_per_frame": 0.5}} for r in rows],
+        model: [{**r, "calibration_ms": 32.0, "quiet": {key: 0.5}} for r in rows],
     }  # fmt: skip
     text = bench.format_results(results)
-    assert "controller roll-out, B=2, numpy" in text and "controller roll-out, B=2, torch" in text
-
-
-def test_the_gpt_is_timed_on_both_step_backends(random_generator) -> None:
-    """The GPT's decoding alone, numpy and torch, its backend setting left as it was, and a row per
-    backend in the table."""
-    gpt = random_generator.pipeline.gpt
-    rows = [bench.time_gpt(random_generator, 2, backend, tokens=4, runs=1) for backend in ("numpy", "torch")]
-    assert [r["backend"] for r in rows] == ["numpy", "torch"] and all(r["ms_per_token"] > 0 for r in rows)
-    assert gpt.step_backend == "auto"
-    results = {
-        "model": "m", "untrained": False, "device": "cpu",
-        "hardware": {"cpu": "x86_64", "cpu_count": 2, "torch_threads": 1},
-        "clip_latency_ms": {"median": 1.0, "p90": 1.0, "runs": 1, "frames": 200},
-        "stream": [], "stream_lookahead_frames": 20, "control_delay_frames": 4,
-        "gpt": [{**r, "calibration_ms": 32.0, "quiet": {"ms_per_token": 0.5}} for r in rows],
-    }  # fmt: skip
-    text = bench.format_results(results)
-    assert "GPT decoding, B=2, numpy" in text and "GPT decoding, B=2, torch" in text
+    assert f"{label}, B=2, numpy" in text and f"{label}, B=2, torch" in text
