@@ -1,0 +1,126 @@
+"""Where a token's time goes in one environment: the stream's stages timed one by one.
+
+``motion_env/Waypoints-v0`` driven as ``motion-env bench`` drives it (an agent of
+:data:`motion_env.evaluation.bench.AGENTS`: following its route, or a learner sending a new random
+target every step, at one frame a step or the learning default of four), each stage's method
+wrapped in a wall-clock timer for the timed steps; per token, the milliseconds of each stage
+(nested: the path's planning holds the controller's roll-out and the look-ahead head). The
+timers cost about a microsecond a call. With ``--calibrate``, the calibration workload beside the
+run and each time also as its quiet-machine equivalent.
+
+    python scripts/stage_times.py --agent learner_4 --steps 300
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections import Counter, defaultdict
+from collections.abc import Callable
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import torch
+
+import motion_env  # noqa: F401  (registers the environments)
+from motion_env.evaluation.bench import (
+    AGENTS,
+    BENCH_TEXT,
+    REFERENCE_CALIBRATION_S,
+    _agent_action,
+    calibration_s,
+)
+from motion_env.generation.feet import FootPinner
+from motion_env.generation.generator import RANDOM_MODEL, MotionGenerator
+from motion_env.generation.physics import PhysicsFilter
+from motion_env.generation.pipeline import Pipeline
+from motion_env.generation.streaming import MotionStream
+from motion_env.models.controller import PathController
+from motion_env.models.gpt import TokenGPT
+from motion_env.models.lookahead import LookaheadHead
+
+ROUTE = [[0.0, 3.0], [3.0, 6.0], [6.0, 6.0], [6.0, 0.0]]
+# (class, method, label), in the order a token runs them; the indented ones run inside the one above.
+STAGES = [
+    (MotionStream, "_produce", "token (all stages)"),
+    (MotionStream, "_plan_paths", "  2. path: plan"),
+    (PathController, "run", "    controller roll-out"),
+    (LookaheadHead, "predict", "    look-ahead head"),
+    (MotionStream, "_restore", "    restore after a new target"),
+    (MotionStream, "_sample_tokens", "  3. tokens"),
+    (TokenGPT, "step", "    GPT step"),
+    (Pipeline, "decode_next", "  4. decode"),
+    (MotionStream, "_compose", "  5. compose"),
+    (MotionStream, "_balanced", "  6. balance"),
+    (FootPinner, "apply_rows", "  6. feet"),
+    (PhysicsFilter, "apply_rows", "  6. physics"),
+]
+
+
+def timed(totals: defaultdict[str, float], calls: Counter, label: str, method: Callable) -> Callable:
+    """`method` with its wall time added to totals[label] and its calls counted."""
+
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        start = time.perf_counter()
+        try:
+            return method(*args, **kwargs)
+        finally:
+            totals[label] += time.perf_counter() - start
+            calls[label] += 1
+
+    return wrapper
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--agent", default="learner_4", choices=sorted(AGENTS), help="how the env is driven")
+    parser.add_argument("--steps", type=int, default=300, help="timed env steps (after 30 of warm-up)")
+    parser.add_argument("--weights", default=None, help="weights folder ('random': untrained)")
+    parser.add_argument("--calibrate", action="store_true", help="also quiet-machine equivalents")
+    args = parser.parse_args()
+    if args.steps < 1:
+        parser.error(f"--steps must be >= 1, got {args.steps}")
+    torch.set_num_threads(1)
+    gen = MotionGenerator.from_pretrained(RANDOM_MODEL if args.weights == "random" else args.weights)
+    env = gym.make("motion_env/Waypoints-v0", generator=gen, **AGENTS[args.agent])
+    _, info = env.reset(seed=0, options={"text": BENCH_TEXT, "waypoints": ROUTE})
+    rng = np.random.default_rng(0)
+
+    def run(steps: int) -> None:
+        nonlocal info
+        for _ in range(steps):
+            _, _, terminated, truncated, info = env.step(
+                _agent_action(args.agent, info, rng, env.action_space.shape)
+            )
+            if terminated or truncated:
+                _, info = env.reset()
+
+    run(30)
+    totals: defaultdict[str, float] = defaultdict(float)
+    calls: Counter = Counter()
+    saved = [(cls, name, cls.__dict__.get(name)) for cls, name, _ in STAGES]  # None: inherited
+    for cls, name, label in STAGES:
+        setattr(cls, name, timed(totals, calls, label, getattr(cls, name)))
+    try:
+        start = time.perf_counter()
+        run(args.steps)
+        wall = time.perf_counter() - start
+    finally:
+        for cls, name, method in saved:
+            if method is None:
+                delattr(cls, name)  # the parent's method shows through again
+            else:
+                setattr(cls, name, method)
+    scale = REFERENCE_CALIBRATION_S / calibration_s() if args.calibrate else None
+    tokens = max(calls["token (all stages)"], 1)
+    print(f"{args.agent}: {args.steps} steps, {tokens} tokens, {wall / args.steps * 1e3:.2f} ms a step")
+    print(f"{'stage':<34}{'ms/token':>10}{'quiet equiv.':>14}{'calls/token':>13}")
+    for _, _, label in STAGES:
+        ms = totals[label] / tokens * 1e3
+        quiet = f"{ms * scale:.3f}" if scale else ""
+        print(f"{label:<34}{ms:>10.3f}{quiet:>14}{calls[label] / tokens:>13.2f}")
+
+
+if __name__ == "__main__":
+    main()
