@@ -10,7 +10,7 @@ import torch
 
 from motion_env.models.checkpoint import export_checkpoint, load_checkpoint, read_checkpoint, save_checkpoint
 from motion_env.models.normalizer import Normalizer
-from motion_env.models.vqvae import VQVAE, VQVAEConfig
+from motion_env.models.vqvae import NUMPY_MAX_ROWS, VQVAE, VQVAEConfig
 
 
 def tiny(rate: int = 4, **kw) -> VQVAE:
@@ -118,6 +118,41 @@ def test_decoder_stream_restores_its_history(spread: VQVAE) -> None:
     torch.testing.assert_close(stream.step(codes[:, 3]), want, atol=0.0, rtol=0.0)
     with pytest.raises(ValueError, match="state"):
         stream.restore(saved[:-1])
+
+
+def _stream_run(model: VQVAE, backend: str, codes: torch.Tensor) -> torch.Tensor:
+    """Frames of 3 rows stepping alone and together, one reset midway, on `backend`."""
+    stream = model.decoder_stream(3)
+    stream.backend = backend
+    out = []
+    with torch.no_grad():
+        for t in range(codes.shape[1]):
+            rows = [0, 2] if t % 3 == 1 else None
+            out.append(stream.step(codes[rows or [0, 1, 2], t], rows=rows))
+            if t == 4:
+                stream.reset([1])
+    return torch.cat([o.reshape(-1) for o in out])
+
+
+def test_decoder_stream_on_numpy_equals_torch(spread: VQVAE) -> None:
+    codes = torch.randint(0, 32, (3, 2 * spread.decoder_context_tokens))
+    got, want = _stream_run(spread, "numpy", codes), _stream_run(spread, "torch", codes)
+    torch.testing.assert_close(got, want, atol=1e-5, rtol=1e-5)
+    assert want.abs().max() > 0.1  # the outputs are not all near zero
+
+
+def test_decoder_stream_backend_choice_and_errors(spread: VQVAE) -> None:
+    stream = spread.decoder_stream(1)
+    with torch.no_grad():
+        assert stream._on_numpy(1) and stream._on_numpy(NUMPY_MAX_ROWS)
+        assert not stream._on_numpy(NUMPY_MAX_ROWS + 1)  # many rows: torch's products win
+    assert not stream._on_numpy(1)  # gradients on
+    stream.backend = "numpy"
+    with pytest.raises(ValueError, match="without gradients on the CPU only"):
+        stream._on_numpy(1)  # (step() itself runs without gradients)
+    stream.backend = "jax"
+    with torch.no_grad(), pytest.raises(ValueError, match="backend must be one of"):
+        stream.step(torch.tensor([0]))
 
 
 def test_decoder_context_is_tight() -> None:
