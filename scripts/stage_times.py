@@ -41,21 +41,35 @@ from motion_env.models.gpt import TokenGPT
 from motion_env.models.lookahead import LookaheadHead
 
 ROUTE = [[0.0, 3.0], [3.0, 6.0], [6.0, 6.0], [6.0, 0.0]]
-# (class, method, label), in the order a token runs them; the indented ones run inside the one above.
-STAGES = [
-    (MotionStream, "_produce", "token (all stages)"),
-    (MotionStream, "_plan_paths", "  2. path: plan"),
-    (PathController, "run", "    controller roll-out"),
-    (LookaheadHead, "predict", "    look-ahead head"),
-    (MotionStream, "_restore", "    restore after a new target"),
-    (MotionStream, "_sample_tokens", "  3. tokens"),
-    (TokenGPT, "step", "    GPT step"),
-    (Pipeline, "decode_next", "  4. decode"),
-    (MotionStream, "_compose", "  5. compose"),
-    (MotionStream, "_balanced", "  6. balance"),
-    (FootPinner, "apply_rows", "  6. feet"),
-    (PhysicsFilter, "apply_rows", "  6. physics"),
-]
+# What a token runs, in order: "label = Class.method", the indented ones inside the one above.
+STAGE_TABLE = """
+token (all stages) = MotionStream._produce
+  2. path: plan = MotionStream._plan_paths
+    controller roll-out = PathController.run
+    look-ahead head = LookaheadHead.predict
+    restore after a new target = MotionStream._restore
+  3. tokens = MotionStream._sample_tokens
+    GPT step = TokenGPT.step
+  4. decode = Pipeline.decode_next
+  5. compose = MotionStream._compose
+  6. balance = MotionStream._balanced
+  6. feet = FootPinner.apply_rows
+  6. physics = PhysicsFilter.apply_rows
+"""
+CLASSES = {
+    c.__name__: c
+    for c in (MotionStream, PathController, LookaheadHead, TokenGPT, Pipeline, FootPinner, PhysicsFilter)
+}
+
+
+def _stage(line: str) -> tuple[type, str, str]:
+    """(class, method, label) of one line of :data:`STAGE_TABLE`."""
+    label, target = line.split(" = ")
+    cls, method = target.split(".")
+    return CLASSES[cls], method, label
+
+
+STAGES = [_stage(line) for line in STAGE_TABLE.strip("\n").splitlines()]
 
 
 def timed(totals: defaultdict[str, float], calls: Counter, label: str, method: Callable) -> Callable:

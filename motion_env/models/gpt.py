@@ -396,7 +396,7 @@ class TokenGPT(nn.Module):
         valid = torch.ones(tokens.shape, dtype=torch.bool, device=tokens.device)
         if N == 1 and self._on_numpy(tokens.shape[0]):
             self._check_path(tokens, path)
-            logits, kv = self._numpy_step(self, cache, tokens, path)
+            logits, kv = self._numpy_step(self, tokens, path, cache.text, cache.pos, cache.valid, cache.kv)
         else:
             pos = cache.pos[:, None] + torch.arange(N, device=tokens.device)[None]
             x = self._embed(tokens, path.to(cache.text.dtype), cache.text, pos)

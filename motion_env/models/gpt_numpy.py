@@ -17,15 +17,16 @@ drawn from them is the same unless a uniform draw falls within that rounding of 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 import torch
+from torch import nn
 
 from motion_env.models.frame_ops import NumpyOps
 
-if TYPE_CHECKING:
-    from motion_env.models.gpt import GPTCache, TokenGPT
+# (The GPT is typed as a module here: models.gpt imports this one, not the other way round.)
+KV = list[tuple[torch.Tensor, torch.Tensor]]
 
 # The most rows (characters, or twice that with guidance) a step runs on numpy; above it torch's
 # matrix products win (`motion-env bench`'s GPT rows).
@@ -81,7 +82,7 @@ def _plain(linear: torch.nn.Linear) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(_np(linear.weight).T, np.float32), _np(linear.bias).astype(np.float32)
 
 
-def _prepare(gpt: TokenGPT) -> _Weights:
+def _prepare(gpt: nn.Module) -> _Weights:
     c = gpt.config
     head_dim = c.n_embd // c.n_head
     # The query's third of the qkv product scaled by 1 / sqrt(head size), as attention would.
@@ -128,7 +129,7 @@ class NumpyStep:
         self._params: tuple[torch.Tensor, ...] = ()
         self._weights: tuple[tuple[int, ...], _Weights] | None = None
 
-    def weights(self, gpt: TokenGPT) -> _Weights:
+    def weights(self, gpt: nn.Module) -> _Weights:
         # Listing a module's parameters costs a third of a step: the list is kept, and only the
         # version counters are read each step.
         if not self._params:
@@ -146,11 +147,11 @@ class NumpyStep:
 
     def _blocks(
         self,
-        gpt: TokenGPT,
+        gpt: nn.Module,
         x: np.ndarray,
         mask: np.ndarray,
-        past: list[tuple[torch.Tensor, torch.Tensor]] | None,
-    ) -> tuple[torch.Tensor, list[tuple[torch.Tensor, torch.Tensor]]]:
+        past: KV | None,
+    ) -> tuple[torch.Tensor, KV]:
         """The transformer over new inputs x (R, N, C) after an optional cached past, each query
         seeing the keys where the additive `mask` (R, 1, N, L+N) is 0: logits (R, N, V) and every
         layer's keys and values (R, H, L+N, hd), as torch tensors."""
@@ -172,31 +173,34 @@ class NumpyStep:
             kvs.append((torch.from_numpy(np.ascontiguousarray(k)), torch.from_numpy(np.ascontiguousarray(v))))
         return torch.from_numpy(self._normed(x, w) @ w.head + w.head_b), kvs
 
-    def run(
-        self, gpt: TokenGPT, x: torch.Tensor, mask: torch.Tensor
-    ) -> tuple[torch.Tensor, list[tuple[torch.Tensor, torch.Tensor]]]:
+    def run(self, gpt: nn.Module, x: torch.Tensor, mask: torch.Tensor) -> tuple[torch.Tensor, KV]:
         """:meth:`TokenGPT._run` without a past: embedded inputs x (R, N, C) and the additive
         mask (R, 1, N, N) it made; logits (R, N, V) and the keys and values (re-priming the
         window)."""
         return self._blocks(gpt, x.detach().numpy(), mask.numpy(), None)
 
     def __call__(
-        self, gpt: TokenGPT, cache: GPTCache, tokens: torch.Tensor, path: torch.Tensor
-    ) -> tuple[torch.Tensor, list[tuple[torch.Tensor, torch.Tensor]]]:
+        self,
+        gpt: nn.Module,
+        tokens: torch.Tensor,
+        path: torch.Tensor,
+        text: torch.Tensor,
+        pos: torch.Tensor,
+        valid: torch.Tensor,
+        past: KV,
+    ) -> tuple[torch.Tensor, KV]:
         """Logits (R, 1, V) of one new input per row ((R, 1) `tokens`, (R, 1, path_dim) `path`)
-        after `cache`'s past, and the keys and values with it appended (the cache is not
-        changed: :meth:`TokenGPT._append` does its bookkeeping as for torch's step). The
-        embedding and the mask are made here too, on numpy's cheaper operations."""
+        after a cache's past (its (R, C) `text`, (R,) `pos`, (R, L) `valid` and keys and values
+        `past`), and the keys and values with it appended (:meth:`TokenGPT._append` does the
+        cache's bookkeeping as for torch's step). The embedding and the mask are made here too,
+        on numpy's cheaper operations."""
         w = self.weights(gpt)
         p = path[:, 0].detach().numpy().astype(np.float32, copy=False)
         path_x = NumpyOps.gelu(p @ w.path_fc + w.path_fc_b) @ w.path_out + w.path_out_b
         x = (
-            w.tok_emb[tokens[:, 0].numpy()]
-            + path_x
-            + cache.text.detach().numpy()
-            + w.pos_emb[cache.pos.numpy()]
+            w.tok_emb[tokens[:, 0].numpy()] + path_x + text.detach().numpy() + w.pos_emb[pos.numpy()]
         )  # (R, C)
         # Additive mask over the cached positions and the new one (which always sees itself).
-        seen = np.concatenate([cache.valid.numpy(), np.ones((len(x), 1), bool)], 1)
+        seen = np.concatenate([valid.numpy(), np.ones((len(x), 1), bool)], 1)
         mask = np.where(seen, np.float32(0.0), np.float32(-np.inf))[:, None, None]  # (R, 1, 1, L+1)
-        return self._blocks(gpt, x[:, None], mask, cache.kv)
+        return self._blocks(gpt, x[:, None], mask, past)
