@@ -277,7 +277,8 @@ def test_json_report_of_bench_is_unchanged_by_the_rules(tmp_path, capsys) -> Non
         ("control", ["--max-clips", "0"], "ControlSettings.max_clips must be an integer >= 1, got 0"),
         ("captions", ["--seeds", "0"], "RecognitionSettings.seeds must be an integer >= 1, got 0"),
         ("natural", ["--per-action", "1"], "NaturalnessSettings.per_action must be an integer >= 2"),
-        ("natural", ["--weights", "nowhere"], "--weights nowhere: no generator weights directory"),
+        ("natural", ["--weights", "nowhere"], "--model/--weights nowhere: no generator weights directory"),
+        ("captions", ["--weights", "nowhere"], "--model/--weights nowhere: no generator weights directory"),
         ("natural", ["--split", "val"], "--split val: no val.txt"),
     ],
 )

@@ -174,6 +174,15 @@ CAPTION_READER_HELP = (
 )
 
 
+def add_weights(p: argparse.ArgumentParser) -> None:
+    """``--model`` (or its alias ``--weights``): the generator's weights folder, in every command
+    that loads one (``args.model``)."""
+    p.add_argument(
+        "--model", "--weights", dest="model", default=None,
+        help="generator weights directory (default: the shipped model); --weights is the same",
+    )  # fmt: skip
+
+
 def add_caption_reader(p: argparse.ArgumentParser) -> None:
     """``--caption-reader`` (commands that load a generator's weights)."""
     p.add_argument("--caption-reader", default=None, metavar="NAME", help=CAPTION_READER_HELP)
@@ -185,7 +194,7 @@ def check_model_choice(args: argparse.Namespace) -> None:
     if args.random_model and args.model is not None:
         raise CommandError("give either --model or --random-model, not both")
     if args.model is not None and not Path(args.model).is_dir():
-        raise FileNotFoundError(f"--model {args.model}: no generator weights directory there")
+        raise FileNotFoundError(f"--model/--weights {args.model}: no generator weights directory there")
 
 
 def load_generator(args: argparse.Namespace, captions: list[str]) -> Any:

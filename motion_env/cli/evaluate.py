@@ -22,6 +22,7 @@ from motion_env.cli.common import (
     add_caption_reader,
     add_overwrite,
     add_threads,
+    add_weights,
     check_new_file,
     set_threads,
 )
@@ -50,7 +51,7 @@ def _add_control_options(p: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     p.add_argument("--steps", type=int, default=None, help="refinement steps (default: the generator's)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--model", default=None, help="weights directory (default: the shipped model)")
+    add_weights(p)
 
 
 def _add_captions_options(p: argparse.ArgumentParser) -> None:
@@ -58,7 +59,7 @@ def _add_captions_options(p: argparse.ArgumentParser) -> None:
         "--seeds", type=int, default=4, help="clips per (action, style) and caption set (default 4)"
     )
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--model", default=None, help="generator weights directory (default: the shipped model)")
+    add_weights(p)
     p.add_argument("--classifier", default=None, help=_CLASSIFIER_HELP)
     add_caption_reader(p)
 
@@ -73,10 +74,7 @@ def _add_natural_options(p: argparse.ArgumentParser) -> None:
         "VQ-VAE alone, on their real root paths (what the tokenizer changes); real-path: the "
         "generator's tokens along the takes' real root paths, no path controller (what the GPT adds)",
     )  # fmt: skip
-    p.add_argument(
-        "--weights", "--model", dest="model", default=None,
-        help="generator weights directory (default: the shipped model)",
-    )  # fmt: skip
+    add_weights(p)
     p.add_argument("--classifier", default=None, help=_CLASSIFIER_HELP)
     p.add_argument(
         "--actions", default=None, type=lambda text: tuple(a.strip() for a in text.split(",")),
@@ -93,8 +91,7 @@ def _check_dataset(args: argparse.Namespace) -> None:
     if not (Path(args.data) / f"{args.split}.txt").is_file():
         raise CommandError(f"--split {args.split}: no {args.split}.txt in {args.data}")
     if args.model is not None and not Path(args.model).is_dir():
-        flag = "--weights" if args.eval_command == "natural" else "--model"
-        raise CommandError(f"{flag} {args.model}: no generator weights directory there")
+        raise CommandError(f"--model/--weights {args.model}: no generator weights directory there")
     if getattr(args, "classifier", None) is not None and not Path(args.classifier).is_file():
         raise CommandError(f"--classifier {args.classifier}: no such file")
 

@@ -15,6 +15,7 @@ from motion_env.cli.common import (
     add_caption_reader,
     add_overwrite,
     add_threads,
+    add_weights,
     check_device,
     check_model_choice,
     check_new_file,
@@ -43,7 +44,7 @@ def add_generate(sub: argparse._SubParsersAction) -> None:
     add_overwrite(p)
     infeasible = "timed waypoints faster than a person: an error (raise) or retimed with a warning (warn)"
     p.add_argument("--infeasible", choices=("raise", "warn"), default="raise", help=infeasible)
-    p.add_argument("--model", default=None, help="weights directory (default: the shipped model)")
+    add_weights(p)
     p.add_argument(
         "--random-model",
         action="store_true",
@@ -122,7 +123,7 @@ def run_generate(args: argparse.Namespace) -> int:
 
 def add_bench(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("bench", help="latency and throughput of the generator and the environment")
-    p.add_argument("--model", default=None, help="weights directory (default: the shipped model)")
+    add_weights(p)
     p.add_argument("--random-model", action="store_true", help="benchmark tiny UNTRAINED random weights")
     p.add_argument("--device", default="cpu", help="torch device (default cpu)")
     p.add_argument("--runs", type=int, default=10, help="timed runs of the 200-frame clip (after warm-up)")

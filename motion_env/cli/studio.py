@@ -14,7 +14,7 @@ import sys
 import threading
 
 from motion_env.args import install_line
-from motion_env.cli.common import CommandError, add_threads, check_model_choice, load_generator
+from motion_env.cli.common import CommandError, add_threads, add_weights, check_model_choice, load_generator
 
 __all__ = ["add_studio", "run_studio"]
 
@@ -49,7 +49,7 @@ def add_studio(sub: argparse._SubParsersAction) -> None:
         help="how many characters (a crowd, captions taken from --text in turn; default: one per --text)",
     )
     p.add_argument("--seed", type=int, default=0, help="random seed of the stream (the page can change it)")
-    p.add_argument("--model", default=None, help="weights directory (default: the shipped model)")
+    add_weights(p)
     p.add_argument("--random-model", action="store_true", help="tiny UNTRAINED random weights (for testing)")
     p.add_argument("--device", default="cpu", help="torch device (default cpu)")
     add_threads(p)
