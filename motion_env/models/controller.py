@@ -30,7 +30,15 @@ import torch
 from torch import nn
 
 from motion_env.models.controller_state import ControllerState, Trace
-from motion_env.models.frame_ops import TORCH, Array, Constants, NumpyOps, TorchOps
+from motion_env.models.frame_ops import (
+    TORCH,
+    Array,
+    Constants,
+    NumpyOps,
+    TorchOps,
+    gradients_state,
+    numpy_chosen,
+)
 from motion_env.models.waypoint_features import (
     RouteView,
     from_heading_frame_torch,
@@ -45,8 +53,6 @@ from motion_env.motion.validation import CheckedConfig, NonNegativeFloat, Positi
 
 # The most characters a roll-out without gradients runs on numpy (PathController._ops).
 NUMPY_MAX_BATCH = 8
-# What PathController.frame_backend may be.
-FRAME_BACKENDS = ("auto", "torch", "numpy")
 
 
 @dataclass
@@ -102,7 +108,7 @@ class PathController(nn.Module):
         nn.init.zeros_(self.out[-1].bias)
         self._text_cache: tuple[torch.Tensor, tuple[int, int], torch.Tensor] | None = None
         self._numpy = NumpyOps()  # the frame's backend for roll-outs without gradients on the CPU
-        # Where a roll-out's frames run (FRAME_BACKENDS): "auto" (numpy for a few characters on the
+        # Where a roll-out's frames run (frame_ops.BACKENDS): "auto" (numpy for a few characters on the
         # CPU without gradients, else torch), "torch" (the same numbers on any device, to the bit),
         # or "numpy" (CPU, no gradients); the two agree to float32 rounding.
         self.frame_backend = "auto"
@@ -319,18 +325,12 @@ class PathController(nn.Module):
         characters (a third of torch's per-operation cost at one frame's sizes), else torch (its
         matrix products win from about 16 rows on: per frame 0.28 / 0.46 ms at one character,
         1.69 / 1.48 ms at 64, numpy / torch; ``motion-env bench``'s controller rows)."""
-        backend = self.frame_backend
-        if backend not in FRAME_BACKENDS:
-            raise ValueError(f"PathController.frame_backend must be one of {FRAME_BACKENDS}, got {backend!r}")
         numpy_ok = not torch.is_grad_enabled() and self.device.type == "cpu"
-        if backend == "numpy" and not numpy_ok:
-            raise ValueError(
-                "PathController.frame_backend='numpy' runs roll-outs without gradients on the CPU only "
-                f"(gradients {'on' if torch.is_grad_enabled() else 'off'}, device {self.device})"
-            )
-        if backend == "torch" or not numpy_ok or (backend == "auto" and batch > NUMPY_MAX_BATCH):
-            return TORCH
-        return self._numpy
+        on_numpy = numpy_chosen(
+            "PathController.frame_backend", self.frame_backend, batch, NUMPY_MAX_BATCH, numpy_ok,
+            "roll-outs without gradients on the CPU", lambda: f"{gradients_state()}, device {self.device}",
+        )  # fmt: skip
+        return self._numpy if on_numpy else TORCH
 
     def _frame(
         self,

@@ -14,6 +14,7 @@ holds the weights transposed, the layout a one-row product reads fastest.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import fields, replace
 from typing import Any, NamedTuple
 
@@ -25,6 +26,31 @@ from scipy.special import erf, expit
 from motion_env.motion.skeleton import FPS
 
 Array = Any  # a torch.Tensor or a numpy array, as the ops object in hand makes them
+
+# What a model's numpy switch may be set to (PathController.frame_backend, TokenGPT.step_backend,
+# DecoderStream.backend): "auto" (numpy for a few rows where it can run, else torch), "torch", "numpy".
+BACKENDS = ("auto", "torch", "numpy")
+
+
+def numpy_chosen(
+    owner: str, setting: str, rows: int, max_rows: int, numpy_ok: bool, needs: str, state: Callable[[], str]
+) -> bool:
+    """Whether a step of `rows` rows runs on numpy, as the switch `owner` (its name in errors) set
+    to `setting` (:data:`BACKENDS`) says: "auto" takes numpy where it can run (`numpy_ok`) for up
+    to `max_rows` rows. Forcing "numpy" where it cannot run is an error naming what it `needs`
+    and, from `state()`, what it got (made only then: this runs at every step)."""
+    if setting not in BACKENDS:
+        raise ValueError(f"{owner} must be one of {BACKENDS}, got {setting!r}")
+    if setting == "numpy" and not numpy_ok:
+        raise ValueError(f"{owner}='numpy' runs {needs} only ({state()})")
+    if setting == "torch" or not numpy_ok:
+        return False
+    return setting == "numpy" or rows <= max_rows
+
+
+def gradients_state() -> str:
+    """ "gradients on" or "gradients off", for the errors of :func:`numpy_chosen`."""
+    return f"gradients {'on' if torch.is_grad_enabled() else 'off'}"
 
 
 class Constants(NamedTuple):

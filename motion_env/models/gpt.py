@@ -35,13 +35,11 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from motion_env.models.frame_ops import gradients_state, numpy_chosen
 from motion_env.models.gpt_numpy import NUMPY_MAX_ROWS, NumpyStep
 from motion_env.models.path_features import D_PATH
 from motion_env.models.sampling import SamplingConfig, sample_tokens
 from motion_env.motion.validation import CheckedConfig, PositiveInt
-
-# What TokenGPT.step_backend may be.
-STEP_BACKENDS = ("auto", "torch", "numpy")
 
 
 @dataclass
@@ -191,7 +189,7 @@ class TokenGPT(nn.Module):
             if name.endswith("proj.weight") and "text" not in name or name.endswith("mlp.2.weight"):
                 nn.init.normal_(p, std=0.02 / math.sqrt(2 * c.n_layer))  # GPT-2's residual scaling
         self._numpy_step = NumpyStep()
-        # Where a decoding step (a new token, the window re-primed) runs (STEP_BACKENDS): "auto"
+        # Where a decoding step (a new token, the window re-primed) runs (frame_ops.BACKENDS): "auto"
         # (numpy for a few rows on the CPU without gradients, in eval mode, else torch), "torch"
         # (any device, the module's own forward pass), or "numpy"; the two agree to float32 rounding.
         self.step_backend = "auto"
@@ -411,9 +409,6 @@ class TokenGPT(nn.Module):
     def _on_numpy(self, rows: int) -> bool:
         """Whether a decoding step for `rows` rows (a new token, or the window re-primed) runs on
         numpy (:attr:`step_backend`)."""
-        backend = self.step_backend
-        if backend not in STEP_BACKENDS:
-            raise ValueError(f"TokenGPT.step_backend must be one of {STEP_BACKENDS}, got {backend!r}")
         weight = self.head.weight
         numpy_ok = (
             not torch.is_grad_enabled()
@@ -421,15 +416,11 @@ class TokenGPT(nn.Module):
             and weight.device.type == "cpu"
             and weight.dtype == torch.float32
         )
-        if backend == "numpy" and not numpy_ok:
-            raise ValueError(
-                "TokenGPT.step_backend='numpy' runs float32 steps without gradients, in eval mode, on "
-                f"the CPU only (gradients {'on' if torch.is_grad_enabled() else 'off'}, training "
-                f"{self.training}, {weight.dtype} on {weight.device})"
-            )
-        if backend == "torch" or not numpy_ok:
-            return False
-        return backend == "numpy" or rows <= NUMPY_MAX_ROWS
+        return numpy_chosen(
+            "TokenGPT.step_backend", self.step_backend, rows, NUMPY_MAX_ROWS, numpy_ok,
+            "float32 steps without gradients, in eval mode, on the CPU",
+            lambda: f"{gradients_state()}, training {self.training}, {weight.dtype} on {weight.device}",
+        )  # fmt: skip
 
     @torch.no_grad()
     def step(

@@ -27,6 +27,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from motion_env.models.frame_ops import gradients_state, numpy_chosen
 from motion_env.motion.skeleton import FEATURE_DIM, NUM_JOINTS, RIC
 from motion_env.motion.validation import CheckedConfig, NonNegativeFloat, PositiveInt
 
@@ -300,8 +301,7 @@ class VQVAE(nn.Module):
         return self.decode(recent)[:, -self.rate :]
 
 
-# What DecoderStream.backend may be, and the most rows a step runs on numpy ("auto").
-STREAM_BACKENDS = ("auto", "torch", "numpy")
+# The most rows a step runs on numpy when DecoderStream.backend is "auto".
 NUMPY_MAX_ROWS = 8
 
 
@@ -355,7 +355,7 @@ class DecoderStream:
             self._mixes = [
                 m.mix.weight[:, :, 0].clone() for m in self._layers if isinstance(m, ResBlock)
             ]  # the ResBlocks' 1x1 convs as (C_out, C_in)
-        # Where a step runs (STREAM_BACKENDS): "auto" (numpy for a few rows on the CPU without
+        # Where a step runs (frame_ops.BACKENDS): "auto" (numpy for a few rows on the CPU without
         # gradients, else torch), "torch" or "numpy"; the numpy copies are made here once.
         self.backend = "auto"
         self._numpy_ok = ref.device.type == "cpu" and ref.dtype == torch.float32
@@ -428,18 +428,12 @@ class DecoderStream:
 
     def _on_numpy(self, rows: int) -> bool:
         """Whether a step of `rows` rows runs on numpy (:attr:`backend`)."""
-        if self.backend not in STREAM_BACKENDS:
-            raise ValueError(f"DecoderStream.backend must be one of {STREAM_BACKENDS}, got {self.backend!r}")
-        numpy_ok = self._numpy_ok and not torch.is_grad_enabled()
-        if self.backend == "numpy" and not numpy_ok:
-            raise ValueError(
-                "DecoderStream.backend='numpy' runs float32 steps without gradients on the CPU only "
-                f"(gradients {'on' if torch.is_grad_enabled() else 'off'}, "
-                f"{self.vqvae.quantizer.codebook.dtype} on {self.vqvae.quantizer.codebook.device})"
-            )
-        if self.backend == "torch" or not numpy_ok:
-            return False
-        return self.backend == "numpy" or rows <= NUMPY_MAX_ROWS
+        codebook = self.vqvae.quantizer.codebook
+        return numpy_chosen(
+            "DecoderStream.backend", self.backend, rows, NUMPY_MAX_ROWS,
+            self._numpy_ok and not torch.is_grad_enabled(), "float32 steps without gradients on the CPU",
+            lambda: f"{gradients_state()}, {codebook.dtype} on {codebook.device}",
+        )  # fmt: skip
 
     def _step_numpy(self, codes: torch.Tensor, index: np.ndarray) -> torch.Tensor:
         """:meth:`step` on numpy: the same layers, the same products."""
