@@ -6,9 +6,12 @@ target every step, at one frame a step or the learning default of four), each st
 wrapped in a wall-clock timer for the timed steps; per token, the milliseconds of each stage
 (nested: the path's planning holds the controller's roll-out and the look-ahead head). The
 timers cost about a microsecond a call. With ``--calibrate``, the calibration workload beside the
-run and each time also as its quiet-machine equivalent.
+run and each time also as its quiet-machine equivalent. With ``--num-envs N`` (N > 1) the native
+vector env instead, as the bench drives it (each env its sampled route, no episode ending): one
+token is then every env's, each stage one batched call.
 
     python scripts/stage_times.py --agent learner_4 --steps 300
+    python scripts/stage_times.py --agent learner_4 --steps 60 --num-envs 64 --calibrate
 """
 
 from __future__ import annotations
@@ -40,7 +43,8 @@ from motion_env.models.controller import PathController
 from motion_env.models.gpt import TokenGPT
 from motion_env.models.lookahead import LookaheadHead
 
-ROUTE = [[0.0, 3.0], [3.0, 6.0], [6.0, 6.0], [6.0, 0.0]]
+# One env as `motion-env bench` times it (time_env): this caption and route, again at every reset.
+OPTIONS = {"text": BENCH_TEXT, "waypoints": [[0.0, 3.0], [3.0, 6.0], [6.0, 6.0], [6.0, 0.0]]}
 # What a token runs, in order: "label = Class.method", the indented ones inside the one above.
 STAGE_TABLE = """
 token (all stages) = MotionStream._produce
@@ -92,14 +96,29 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=300, help="timed env steps (after 30 of warm-up)")
     parser.add_argument("--weights", default=None, help="weights folder ('random': untrained)")
     parser.add_argument("--calibrate", action="store_true", help="also quiet-machine equivalents")
+    parser.add_argument("--num-envs", type=int, default=1, help="characters: over 1, the native vector env")
     args = parser.parse_args()
     if args.steps < 1:
         parser.error(f"--steps must be >= 1, got {args.steps}")
+    if args.num_envs < 1:
+        parser.error(f"--num-envs must be >= 1, got {args.num_envs}")
     torch.set_num_threads(1)
     gen = MotionGenerator.from_pretrained(RANDOM_MODEL if args.weights == "random" else args.weights)
-    env = gym.make("motion_env/Waypoints-v0", generator=gen, **AGENTS[args.agent])
-    _, info = env.reset(seed=0, options={"text": BENCH_TEXT, "waypoints": ROUTE})
     rng = np.random.default_rng(0)
+    if args.num_envs == 1:
+        env = gym.make("motion_env/Waypoints-v0", generator=gen, **AGENTS[args.agent])
+        _, info = env.reset(seed=0, options=OPTIONS)
+    else:  # as `motion-env bench` drives the vector env: the sampled routes, no episode ends
+        env = gym.make_vec(
+            "motion_env/Waypoints-v0",
+            num_envs=args.num_envs,
+            vectorization_mode="vector_entry_point",
+            generator=gen,
+            terminate_on_arrival=False,
+            max_episode_steps=args.steps + 31,
+            **AGENTS[args.agent],
+        )
+        _, info = env.reset(seed=0)
 
     def run(steps: int) -> None:
         nonlocal info
@@ -107,8 +126,8 @@ def main() -> None:
             _, _, terminated, truncated, info = env.step(
                 _agent_action(args.agent, info, rng, env.action_space.shape)
             )
-            if terminated or truncated:
-                _, info = env.reset()
+            if args.num_envs == 1 and (terminated or truncated):
+                _, info = env.reset(options=OPTIONS)
 
     run(30)
     totals: defaultdict[str, float] = defaultdict(float)
@@ -128,7 +147,10 @@ def main() -> None:
                 setattr(cls, name, method)
     scale = REFERENCE_CALIBRATION_S / calibration_s() if args.calibrate else None
     tokens = max(calls["token (all stages)"], 1)
-    print(f"{args.agent}: {args.steps} steps, {tokens} tokens, {wall / args.steps * 1e3:.2f} ms a step")
+    print(
+        f"{args.agent}, {args.num_envs} env(s): {args.steps} steps, {tokens} tokens, "
+        f"{wall / args.steps * 1e3:.2f} ms a step"
+    )
     print(f"{'stage':<34}{'ms/token':>10}{'quiet equiv.':>14}{'calls/token':>13}")
     for _, _, label in STAGES:
         ms = totals[label] / tokens * 1e3

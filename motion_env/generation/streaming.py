@@ -473,7 +473,8 @@ class MotionStream(StreamPaths):
         if (self._front.frame.cpu().numpy() < last).any():
             self._advance(rows, last)  # the controller's roll-out
         elif self._early is None:
-            # A GPT step replaces the cache fields (B = 1: none changes in place): a shallow copy keeps them.
+            # A GPT step writes only past the cached columns (or re-primes into new buffers), and
+            # at B = 1 changes no cached column: a shallow copy keeps the cache as it was.
             undo = (replace(self._cache), self._tok_gens[0].get_state(), self._prev.clone())
             undo += (self._decoder.state(),)
             ahead = self._plan_paths(rows, first)

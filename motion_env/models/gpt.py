@@ -36,10 +36,13 @@ import torch.nn.functional as F
 from torch import nn
 
 from motion_env.models.frame_ops import gradients_state, numpy_chosen
-from motion_env.models.gpt_numpy import NUMPY_MAX_ROWS, NumpyStep
+from motion_env.models.gpt_numpy import KV, NUMPY_MAX_ROWS, NumpyStep
 from motion_env.models.path_features import D_PATH
 from motion_env.models.sampling import SamplingConfig, sample_tokens
 from motion_env.motion.validation import CheckedConfig, PositiveInt
+
+KV1 = tuple[torch.Tensor, torch.Tensor]  # one layer's keys and values, (R, H, L, C/H) each
+Past = tuple[torch.Tensor, torch.Tensor, int]  # one layer's window buffers and the columns cached
 
 
 @dataclass
@@ -91,6 +94,9 @@ class GPTCache:
         tokens: (R, L) the input ids that produced the cache (for re-priming the window).
         path: (R, L, path_dim) the input path features that produced the cache.
         guidance: classifier-free guidance scale (1 = off).
+        room: the window-long buffers that kv, valid, tokens and path are the first L columns
+            of (None until the first step after the cache was made or re-primed): a step writes
+            its column in place instead of concatenating the whole past again.
     """
 
     text: torch.Tensor
@@ -100,6 +106,7 @@ class GPTCache:
     tokens: torch.Tensor | None = None
     path: torch.Tensor | None = None
     guidance: float = 1.0
+    room: CacheRoom | None = None
 
     @property
     def length(self) -> int:
@@ -109,6 +116,18 @@ class GPTCache:
     def batch_size(self) -> int:
         rows = self.text.shape[0]
         return rows // 2 if self.guidance != 1.0 else rows
+
+
+@dataclass
+class CacheRoom:
+    """A GPTCache's buffers for a whole window (block_size columns) of its R rows: per layer
+    keys and values (R, H, block, C/H), and valid (R, block), tokens (R, block), path
+    (R, block, path_dim). Columns past the cache's length hold nothing yet (or a step undone)."""
+
+    kv: list[tuple[torch.Tensor, torch.Tensor]]
+    valid: torch.Tensor
+    tokens: torch.Tensor
+    path: torch.Tensor
 
 
 def _linear(layer: nn.Linear, x: torch.Tensor) -> torch.Tensor:
@@ -130,14 +149,16 @@ class CausalSelfAttention(nn.Module):
         self.proj = nn.Linear(config.n_embd, config.n_embd)
         self.dropout = config.dropout
 
-    def forward(
-        self, x: torch.Tensor, mask: torch.Tensor, past: tuple[torch.Tensor, torch.Tensor] | None
-    ) -> tuple[torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
+    def forward(self, x: torch.Tensor, mask: torch.Tensor, past: Past | None) -> tuple[torch.Tensor, KV1]:
+        """x (B, T, C) after an optional past: its layer's window buffers (B, H, block, hd), into
+        which the new keys and values are written after its first L columns, and L."""
         B, T, C = x.shape
         # (B, T, 3C) -> q, k, v, each (B, H, T, hd): views of the projection, as split + transpose give
         q, k, v = _linear(self.qkv, x).view(B, T, 3, self.n_head, C // self.n_head).permute(2, 0, 3, 1, 4)
         if past is not None:
-            k, v = torch.cat([past[0], k], dim=2), torch.cat([past[1], v], dim=2)  # (B, H, L+T, hd)
+            keys, values, start = past
+            keys[:, :, start : start + T], values[:, :, start : start + T] = k, v
+            k, v = keys[:, :, : start + T], values[:, :, : start + T]  # (B, H, L+T, hd)
         y = F.scaled_dot_product_attention(
             q, k, v, attn_mask=mask, dropout_p=self.dropout if self.training else 0.0
         )  # (B, H, T, hd)
@@ -157,9 +178,7 @@ class Block(nn.Module):
             nn.Dropout(config.dropout),
         )
 
-    def forward(
-        self, x: torch.Tensor, mask: torch.Tensor, past: tuple[torch.Tensor, torch.Tensor] | None
-    ) -> tuple[torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
+    def forward(self, x: torch.Tensor, mask: torch.Tensor, past: Past | None) -> tuple[torch.Tensor, KV1]:
         a, kv = self.attn(_layer_norm(self.ln_1, x), mask, past)
         x = x + a
         fc, _, out, drop = self.mlp  # self.mlp(...), layer by layer (see _linear)
@@ -244,13 +263,16 @@ class TokenGPT(nn.Module):
         self,
         x: torch.Tensor,
         new_valid: torch.Tensor,
-        past: list[tuple[torch.Tensor, torch.Tensor]] | None,
+        past: tuple[KV, int] | None,
         past_valid: torch.Tensor | None,
         decoding: bool = False,
-    ) -> tuple[torch.Tensor, list[tuple[torch.Tensor, torch.Tensor]]]:
-        """Transformer over new inputs x (B, N, C) after an optional cached past; -> logits (B, N, V).
-        With `decoding` (the window re-primed during decoding) a past-less run may take the numpy
-        step's backend (:meth:`_on_numpy`); training and full forward passes stay on torch."""
+    ) -> tuple[torch.Tensor, KV]:
+        """Transformer over new inputs x (B, N, C) after an optional cached past (a cache's room:
+        each layer's window buffers, and the L columns cached, whose (B, L) `past_valid` the
+        queries may see); -> logits (B, N, V) and each layer's keys and values (views of the
+        buffers with a past). With `decoding` (the window re-primed during decoding) a past-less
+        run may take the numpy step's backend (:meth:`_on_numpy`); training and full forward
+        passes stay on torch."""
         B, N, _ = x.shape
         if past and N == 1:
             # One new input (a decoding step): it sees the valid cached positions and itself.
@@ -272,7 +294,7 @@ class TokenGPT(nn.Module):
             return self._numpy_step.run(self, x, mask)
         kvs = []
         for i, block in enumerate(self.blocks):
-            x, kv = block(x, mask, past[i] if past else None)
+            x, kv = block(x, mask, (*past[0][i], past[1]) if past else None)
             kvs.append(kv)
         return F.linear(_layer_norm(self.ln_f, x), self.head.weight), kvs
 
@@ -382,6 +404,30 @@ class TokenGPT(nn.Module):
         x = self._embed(tokens, path, cache.text, pos)
         _, kv = self._run(x, valid, None, None, decoding=True)
         cache.kv, cache.valid, cache.pos, cache.tokens, cache.path = kv, valid, count.clone(), tokens, path
+        cache.room = None  # the next step makes a new one (an undone step's copy keeps the old)
+
+    def _room(self, cache: GPTCache) -> CacheRoom:
+        """The cache's window buffers, made with its L cached columns copied in if it has none."""
+        if cache.room is not None:
+            return cache.room
+        (rows, length), c = cache.valid.shape, self.config
+        device, shape = cache.text.device, (rows, c.n_head, c.block_size, c.n_embd // c.n_head)
+
+        def window(part: torch.Tensor | None, shape: tuple[int, ...], dim: int) -> torch.Tensor:
+            buffer = torch.zeros(shape, dtype=cache.text.dtype if part is None else part.dtype, device=device)
+            if part is not None:
+                buffer.narrow(dim, 0, length).copy_(part)
+            return buffer
+
+        past = cache.kv or [(None, None)] * c.n_layer  # nothing cached yet: empty buffers
+        kv = [(window(k, shape, 2), window(v, shape, 2)) for k, v in past]
+        cache.room = CacheRoom(
+            kv=kv,
+            valid=window(cache.valid, (rows, c.block_size), 1),
+            tokens=window(cache.tokens, (rows, c.block_size), 1),
+            path=window(cache.path, (rows, c.block_size, c.path_dim), 1),
+        )
+        return cache.room
 
     def _append(self, cache: GPTCache, tokens: torch.Tensor, path: torch.Tensor) -> torch.Tensor:
         """Append (R, N) inputs to the cache, sliding the window if needed; -> logits (R, N, V)."""
@@ -392,18 +438,23 @@ class TokenGPT(nn.Module):
         if cache.length + N > block:
             self._reprime(cache, min(block // 2, block - N))
         valid = torch.ones(tokens.shape, dtype=torch.bool, device=tokens.device)
+        length = cache.length
         if N == 1 and self._on_numpy(tokens.shape[0]):
             self._check_path(tokens, path)
-            logits, kv = self._numpy_step(self, tokens, path, cache.text, cache.pos, cache.valid, cache.kv)
+            room = self._room(cache)
+            past = (room.kv, length)
+            logits, kv = self._numpy_step(self, tokens, path, cache.text, cache.pos, cache.valid, past)
         else:
             pos = cache.pos[:, None] + torch.arange(N, device=tokens.device)[None]
             x = self._embed(tokens, path.to(cache.text.dtype), cache.text, pos)
-            logits, kv = self._run(x, valid, cache.kv or None, cache.valid)
+            room = self._room(cache)
+            logits, kv = self._run(x, valid, (room.kv, length), cache.valid)
+        # The new columns written after the cached ones; the cache's fields are views of them.
+        end = length + N
+        room.valid[:, length:end], room.tokens[:, length:end], room.path[:, length:end] = valid, tokens, path
         cache.kv = kv
-        cache.valid = torch.cat([cache.valid, valid], dim=1)
+        cache.valid, cache.tokens, cache.path = room.valid[:, :end], room.tokens[:, :end], room.path[:, :end]
         cache.pos = cache.pos + N
-        cache.tokens = torch.cat([cache.tokens, tokens], dim=1)
-        cache.path = torch.cat([cache.path, path.to(cache.path.dtype)], dim=1)
         return logits
 
     def _on_numpy(self, rows: int) -> bool:

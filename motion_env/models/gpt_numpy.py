@@ -60,6 +60,10 @@ class _Weights(NamedTuple):
     mean: np.ndarray  # (C,) 1 / C each: a LayerNorm's means as one product
 
 
+def _tensor(a: np.ndarray) -> torch.Tensor:
+    return torch.from_numpy(np.ascontiguousarray(a))
+
+
 def _np(t: torch.Tensor) -> np.ndarray:
     return t.detach().cpu().double().numpy()
 
@@ -150,11 +154,13 @@ class NumpyStep:
         gpt: nn.Module,
         x: np.ndarray,
         mask: np.ndarray,
-        past: KV | None,
+        past: tuple[KV, int] | None,
     ) -> tuple[torch.Tensor, KV]:
-        """The transformer over new inputs x (R, N, C) after an optional cached past, each query
-        seeing the keys where the additive `mask` (R, 1, N, L+N) is 0: logits (R, N, V) and every
-        layer's keys and values (R, H, L+N, hd), as torch tensors."""
+        """The transformer over new inputs x (R, N, C) after an optional cached past (each layer's
+        window buffers (R, H, block, hd), float32 on the CPU, and the L columns cached: the new
+        keys and values are written after them), each query seeing the keys where the additive
+        `mask` (R, 1, N, L+N) is 0: logits (R, N, V) and every layer's keys and values
+        (R, H, L+N, hd), as torch tensors (views of the buffers with a past)."""
         w = self.weights(gpt)
         rows, n, heads = x.shape[0], x.shape[1], gpt.config.n_head
         head_dim = gpt.config.n_embd // heads
@@ -162,15 +168,19 @@ class NumpyStep:
         for i, layer in enumerate(w.layers):
             qkv = self._normed(x, w) @ layer.qkv + layer.qkv_b  # (R, N, 3C)
             q, k, v = qkv.reshape(rows, n, 3, heads, head_dim).transpose(2, 0, 3, 1, 4)  # (R, H, N, hd)
-            if past:
-                k = np.concatenate([past[i][0].numpy(), k], 2)  # (R, H, L+N, hd)
-                v = np.concatenate([past[i][1].numpy(), v], 2)
+            if past is not None:
+                (keys, values), start = past[0][i], past[1]
+                end = start + n
+                keys.numpy()[:, :, start:end], values.numpy()[:, :, start:end] = k, v  # in place
+                k, v = keys.numpy()[:, :, :end], values.numpy()[:, :, :end]  # (R, H, L+N, hd)
+                kvs.append((keys[:, :, :end], values[:, :, :end]))
+            else:
+                kvs.append((_tensor(k), _tensor(v)))
             scores = q @ k.swapaxes(-1, -2) + mask  # (R, H, N, L+N)
             weights = np.exp(scores - scores.max(-1, keepdims=True))
             y = (weights @ v) / weights.sum(-1, keepdims=True)  # (R, H, N, hd)
             x = x + y.transpose(0, 2, 1, 3).reshape(rows, n, -1) @ layer.proj + layer.proj_b
             x = x + NumpyOps.gelu(self._normed(x, w) @ layer.fc + layer.fc_b) @ layer.out + layer.out_b
-            kvs.append((torch.from_numpy(np.ascontiguousarray(k)), torch.from_numpy(np.ascontiguousarray(v))))
         return torch.from_numpy(self._normed(x, w) @ w.head + w.head_b), kvs
 
     def run(self, gpt: nn.Module, x: torch.Tensor, mask: torch.Tensor) -> tuple[torch.Tensor, KV]:
@@ -187,13 +197,13 @@ class NumpyStep:
         text: torch.Tensor,
         pos: torch.Tensor,
         valid: torch.Tensor,
-        past: KV,
+        past: tuple[KV, int],
     ) -> tuple[torch.Tensor, KV]:
         """Logits (R, 1, V) of one new input per row ((R, 1) `tokens`, (R, 1, path_dim) `path`)
-        after a cache's past (its (R, C) `text`, (R,) `pos`, (R, L) `valid` and keys and values
-        `past`), and the keys and values with it appended (:meth:`TokenGPT._append` does the
-        cache's bookkeeping as for torch's step). The embedding and the mask are made here too,
-        on numpy's cheaper operations."""
+        after a cache's past (its (R, C) `text`, (R,) `pos`, (R, L) `valid`, and `past`: its
+        room's keys and values, each layer's window buffers, and L), and the keys and values with
+        it appended (:meth:`TokenGPT._append` does the cache's bookkeeping as for torch's step).
+        The embedding and the mask are made here too, on numpy's cheaper operations."""
         w = self.weights(gpt)
         p = path[:, 0].detach().numpy().astype(np.float32, copy=False)
         path_x = NumpyOps.gelu(p @ w.path_fc + w.path_fc_b) @ w.path_out + w.path_out_b

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -83,6 +84,34 @@ def test_kv_cache_matches_full_recomputation() -> None:
     a, _ = model(shifted(tokens, model.config.start_token)[:, :3], path[:, :3], kv_cache=cache)
     b, _ = model(tokens[:, 2:7], path[:, 3:8], kv_cache=cache)
     torch.testing.assert_close(torch.cat([a, b], 1), full, atol=1e-5, rtol=1e-5)
+
+
+@pytest.mark.parametrize("backend", ["numpy", "torch"])
+def test_a_step_writes_in_place_and_a_shallow_copy_undoes_it(backend: str) -> None:
+    """The cache's fields are views of window buffers a step writes its column into; a shallow
+    copy taken before a step (how the stream undoes a token worked out ahead) still continues as
+    if that step never happened, across the window's slide too."""
+    model = tiny(block=8)
+    model.step_backend = backend
+    tokens, path, text = inputs(2, 12)
+    cache, prev = model.new_cache(text), None
+    for i in range(7):
+        _, cache = model.step(cache, prev, path[:, i])
+        prev = tokens[:, i]
+        room = cache.room
+        assert room is not None and cache.kv[0][0].data_ptr() == room.kv[0][0].data_ptr()
+        assert cache.valid.data_ptr() == room.valid.data_ptr() and cache.length == i + 1
+    for ahead in (7, 8):  # the 8th input fills the window, the 9th re-primes it
+        saved = replace(cache)
+        model.step(cache, prev, path[:, ahead] + 5.0)  # a step taken ahead, then undone
+        cache = saved
+        redo, cache = model.step(cache, prev, path[:, ahead])
+        prev = tokens[:, ahead]
+        replay, prev_r = model.new_cache(text), None
+        for i in range(ahead + 1):
+            expected, replay = model.step(replay, prev_r, path[:, i])
+            prev_r = tokens[:, i]
+        torch.testing.assert_close(redo, expected, atol=0, rtol=0)
 
 
 def test_sliding_window_reprimes_from_last_half() -> None:
