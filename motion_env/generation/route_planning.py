@@ -114,6 +114,8 @@ def _planned(route: np.ndarray | None, start_xz: np.ndarray, first_frame: int) -
     route = np.asarray(route, np.float64)
     points = np.concatenate([np.asarray(start_xz, np.float64)[None, :2], route[:, :2]])
     legs = np.linalg.norm(np.diff(points, axis=0), axis=1)  # (K,) leg ending at each waypoint
+    if np.isnan(route[:, 2]).all() and (legs <= MAX_UNTIMED_LEG).all():
+        return route.astype(np.float32)  # nothing to time or split (a learner's goal each step)
     times = route[:, 2].copy()
     anchor_t, pending = float(first_frame), []  # untimed rows since the last timed anchor
     for k, t in enumerate(route[:, 2]):

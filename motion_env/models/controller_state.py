@@ -4,7 +4,7 @@ characters, with row-wise access (the stream advances, restores and resets some 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 import torch
@@ -142,15 +142,13 @@ class StateRing:
     def restore(self, state: ControllerState, rows: torch.Tensor, frames: torch.Tensor) -> ControllerState:
         """`state` with `rows` rolled back to their recorded state at `frames` (one each)."""
         slots = frames % self.size
+        recorded = {name: getattr(self, name)[rows, slots] for name in _RECORDED}  # gathered: new tensors
+        in_order = torch.arange(len(rows), device=rows.device)
+        # Every row in order (a vector env's learners): no take and put, the caption and route as they are.
+        if len(rows) == len(state.frame) and bool((rows == in_order).all()):
+            return replace(state, **recorded, frame=frames.to(state.frame.dtype))
         sub = state.take(rows)
-        sub.pos, sub.theta, sub.vel = (
-            self.pos[rows, slots].clone(),
-            self.theta[rows, slots].clone(),
-            self.vel[rows, slots].clone(),
-        )
-        sub.hidden, sub.queue, sub.frame = (
-            self.hidden[rows, slots].clone(),
-            self.queue[rows, slots].clone(),
-            frames,
-        )
+        for name, value in recorded.items():
+            setattr(sub, name, value)
+        sub.frame = frames
         return state.put(rows, sub)

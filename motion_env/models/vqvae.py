@@ -411,8 +411,12 @@ class DecoderStream:
         index = torch.arange(self.batch) if rows is None else torch.as_tensor(list(rows), dtype=torch.long)
         if self._on_numpy(len(index)):
             return self._step_numpy(codes, index.numpy())
-        index = index.to(self._caches[0].device)
-        x = self.vqvae.quantizer.codebook[codes.to(index.device)][:, None, :]  # (N, 1, code_dim)
+        device = self._caches[0].device
+        # Every row in order (a vector env's token): the histories as views, not gathered and
+        # scattered back (the same numbers; 64 rows' token 0.9 ms less).
+        every = len(index) == self.batch and bool((index == torch.arange(self.batch)).all())
+        index = slice(None) if every else index.to(device)
+        x = self.vqvae.quantizer.codebook[codes.to(device)][:, None, :]  # (N, 1, code_dim)
         n = m = 0
         for layer in self._layers:
             if isinstance(layer, CausalConv1d):
@@ -462,8 +466,9 @@ class DecoderStream:
         taps = np.concatenate([full[:, j * d : j * d + t] for j in range(conv.kernel_size[0])], axis=-1)
         return taps @ self._np["weights"][n] + self._np["biases"][n]  # (N, t, C_out)
 
-    def _conv(self, conv: CausalConv1d, x: torch.Tensor, index: torch.Tensor, n: int) -> torch.Tensor:
-        """`conv` on the new inputs `x` (N, t, C) after the cached ones; the cache moves on."""
+    def _conv(self, conv: CausalConv1d, x: torch.Tensor, index: torch.Tensor | slice, n: int) -> torch.Tensor:
+        """`conv` on the new inputs `x` (N, t, C) after the cached ones of rows `index` (a slice:
+        every row); the cache moves on."""
         cache = self._caches[n]
         full = torch.cat([cache[index], x], dim=1)  # (N, lookback + t, C)
         cache[index] = full[:, full.shape[1] - conv.lookback :]

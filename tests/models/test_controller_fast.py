@@ -206,3 +206,32 @@ def test_trace_holds_every_frame_of_stepping() -> None:
         assert torch.equal(new.root, s.root) and torch.equal(new.frame, s.frame)
         empty, nothing = model.run(state, 0)
         assert nothing.roots.shape == (4, 0, 3) and torch.equal(empty.root, state.root)
+
+
+def test_a_ring_restores_every_row_as_it_restores_some() -> None:
+    """StateRing.restore of every row in order (a vector env's learners: no take / put) gives the
+    state that restoring the rows one group at a time gives."""
+    from motion_env.models.controller_state import StateRing
+
+    model = _tiny(3)
+    rng = np.random.default_rng(3)
+    with torch.no_grad():
+        state = model.init_state(
+            torch.randn(4, 16), _routes(rng, 4), generator=torch.Generator().manual_seed(4)
+        )
+        ring = StateRing(4, 16, TINY.hidden, "cpu")
+        every = torch.arange(4)
+        ring.record(every, state)
+        first = state.frame
+        state, trace = model.run(state, 10, trace=True)
+        ring.record_trace(every, first, trace)
+    frames = torch.tensor([3, 7, 0, 9])
+    whole = ring.restore(state, every, frames)
+    by_parts = ring.restore(
+        ring.restore(state, torch.tensor([2, 0]), frames[[2, 0]]), torch.tensor([1, 3]), frames[[1, 3]]
+    )
+    for name in ("pos", "theta", "vel", "hidden", "queue", "frame", "text", "waypoints", "count"):
+        torch.testing.assert_close(
+            getattr(whole, name), getattr(by_parts, name), rtol=0, atol=0, equal_nan=True
+        )
+    assert torch.equal(whole.hidden[1], trace.hidden[1, 6])  # frame 7: the 7th frame of the run
