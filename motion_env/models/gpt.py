@@ -149,12 +149,16 @@ class CausalSelfAttention(nn.Module):
         self.proj = nn.Linear(config.n_embd, config.n_embd)
         self.dropout = config.dropout
 
+    def project(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """x (B, T, C) -> q, k, v, each (B, H, T, hd): views of the projection, as split + transpose give."""
+        B, T, C = x.shape
+        return _linear(self.qkv, x).view(B, T, 3, self.n_head, C // self.n_head).permute(2, 0, 3, 1, 4)
+
     def forward(self, x: torch.Tensor, mask: torch.Tensor, past: Past | None) -> tuple[torch.Tensor, KV1]:
         """x (B, T, C) after an optional past: its layer's window buffers (B, H, block, hd), into
         which the new keys and values are written after its first L columns, and L."""
         B, T, C = x.shape
-        # (B, T, 3C) -> q, k, v, each (B, H, T, hd): views of the projection, as split + transpose give
-        q, k, v = _linear(self.qkv, x).view(B, T, 3, self.n_head, C // self.n_head).permute(2, 0, 3, 1, 4)
+        q, k, v = self.project(x)
         if past is not None:
             keys, values, start = past
             keys[:, :, start : start + T], values[:, :, start : start + T] = k, v
@@ -266,13 +270,13 @@ class TokenGPT(nn.Module):
         past: tuple[KV, int] | None,
         past_valid: torch.Tensor | None,
         decoding: bool = False,
-    ) -> tuple[torch.Tensor, KV]:
+    ) -> tuple[torch.Tensor | None, KV]:
         """Transformer over new inputs x (B, N, C) after an optional cached past (a cache's room:
         each layer's window buffers, and the L columns cached, whose (B, L) `past_valid` the
         queries may see); -> logits (B, N, V) and each layer's keys and values (views of the
-        buffers with a past). With `decoding` (the window re-primed during decoding) a past-less
-        run may take the numpy step's backend (:meth:`_on_numpy`); training and full forward
-        passes stay on torch."""
+        buffers with a past). With `decoding` (the window re-primed during decoding: only the
+        keys and values, logits None) a past-less run may take the numpy step's backend
+        (:meth:`_on_numpy`); training and full forward passes stay on torch."""
         B, N, _ = x.shape
         if past and N == 1:
             # One new input (a decoding step): it sees the valid cached positions and itself.
@@ -293,9 +297,16 @@ class TokenGPT(nn.Module):
         if decoding and not past and self._on_numpy(B):
             return self._numpy_step.run(self, x, mask)
         kvs = []
-        for i, block in enumerate(self.blocks):
+        # Re-priming wants only the keys and values: the last block's attention and MLP and the
+        # head would make what is thrown away.
+        last = len(self.blocks) - 1 if decoding else len(self.blocks)
+        for i, block in enumerate(self.blocks[:last]):
             x, kv = block(x, mask, (*past[0][i], past[1]) if past else None)
             kvs.append(kv)
+        if decoding:
+            block = self.blocks[last]
+            _, k, v = block.attn.project(_layer_norm(block.ln_1, x))
+            return None, [*kvs, (k, v)]
         return F.linear(_layer_norm(self.ln_f, x), self.head.weight), kvs
 
     # --- training / full recomputation -------------------------------------------------------

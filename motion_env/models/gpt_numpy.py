@@ -155,11 +155,13 @@ class NumpyStep:
         x: np.ndarray,
         mask: np.ndarray,
         past: tuple[KV, int] | None,
-    ) -> tuple[torch.Tensor, KV]:
+        logits: bool = True,
+    ) -> tuple[torch.Tensor | None, KV]:
         """The transformer over new inputs x (R, N, C) after an optional cached past (each layer's
         window buffers (R, H, block, hd), float32 on the CPU, and the L columns cached: the new
         keys and values are written after them), each query seeing the keys where the additive
-        `mask` (R, 1, N, L+N) is 0: logits (R, N, V) and every layer's keys and values
+        `mask` (R, 1, N, L+N) is 0: logits (R, N, V) (None without `logits`: the keys and values
+        only, the last layer's attention and MLP not made) and every layer's keys and values
         (R, H, L+N, hd), as torch tensors (views of the buffers with a past)."""
         w = self.weights(gpt)
         rows, n, heads = x.shape[0], x.shape[1], gpt.config.n_head
@@ -168,6 +170,9 @@ class NumpyStep:
         for i, layer in enumerate(w.layers):
             qkv = self._normed(x, w) @ layer.qkv + layer.qkv_b  # (R, N, 3C)
             q, k, v = qkv.reshape(rows, n, 3, heads, head_dim).transpose(2, 0, 3, 1, 4)  # (R, H, N, hd)
+            if not logits and i == len(w.layers) - 1:  # re-priming: the last keys and values are all
+                kvs.append((_tensor(k), _tensor(v)))
+                return None, kvs
             if past is not None:
                 (keys, values), start = past[0][i], past[1]
                 end = start + n
@@ -183,11 +188,10 @@ class NumpyStep:
             x = x + NumpyOps.gelu(self._normed(x, w) @ layer.fc + layer.fc_b) @ layer.out + layer.out_b
         return torch.from_numpy(self._normed(x, w) @ w.head + w.head_b), kvs
 
-    def run(self, gpt: nn.Module, x: torch.Tensor, mask: torch.Tensor) -> tuple[torch.Tensor, KV]:
-        """:meth:`TokenGPT._run` without a past: embedded inputs x (R, N, C) and the additive
-        mask (R, 1, N, N) it made; logits (R, N, V) and the keys and values (re-priming the
-        window)."""
-        return self._blocks(gpt, x.detach().numpy(), mask.numpy(), None)
+    def run(self, gpt: nn.Module, x: torch.Tensor, mask: torch.Tensor) -> tuple[None, KV]:
+        """:meth:`TokenGPT._run` re-priming the window: embedded inputs x (R, N, C) and the
+        additive mask (R, 1, N, N) it made; the keys and values (no logits)."""
+        return self._blocks(gpt, x.detach().numpy(), mask.numpy(), None, logits=False)
 
     def __call__(
         self,
