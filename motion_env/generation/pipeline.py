@@ -462,11 +462,13 @@ class Pipeline:
             path whose heading is turned to the direction of travel.
         """
         n, m = features.shape[-2], root_path.shape[-2]
-        local = local_pose_from_features(features)
+        start = min(first, n - 1)  # the local pose of frames start.. only: the others are not placed
+        local = local_pose_from_features(features, first=start)
         if m > n:
             local = np.concatenate([local, np.repeat(local[..., -1:, :, :], m - n, axis=-3)], axis=-3)
         path = align_heading_to_travel(root_path)[..., first:num_frames, :]
-        joints = on_bone_lengths(recompose(local[..., first:num_frames, :, :], path, face_travel=False))
+        placed = local[..., first - start : num_frames - start, :, :]
+        joints = on_bone_lengths(recompose(placed, path, face_travel=False))
         held = np.full(joints.shape[:-3], np.nan) if pelvis is None else np.asarray(pelvis, np.float64)
         if np.isnan(held).any():  # the frames' own median
             held = np.where(np.isnan(held), np.median(pelvis_shape(joints), axis=-1), held)

@@ -22,7 +22,7 @@ from scipy.ndimage import gaussian_filter1d
 from motion_env.generation.feet import two_bone_ik
 from motion_env.motion.features import features_to_joints
 from motion_env.motion.kinematics import fit_bone_lengths, rotate_y
-from motion_env.motion.skeleton import FPS
+from motion_env.motion.skeleton import FACE_JOINTS, FPS, NUM_JOINTS
 from motion_env.motion.trajectory import (
     root_path_from_joints,
     validate_root_path,
@@ -59,16 +59,27 @@ def local_pose_from_joints(joints: np.ndarray, root_path: np.ndarray | None = No
     return rotate_y(local, -path[..., None, 2].astype(np.float64)).astype(np.float32)
 
 
-def local_pose_from_features(features: np.ndarray) -> np.ndarray:
-    """Local pose of decoded 263-d features (T, 263) -> (T, 22, 3).
+def local_pose_from_features(features: np.ndarray, first: int = 0) -> np.ndarray:
+    """Local pose of decoded 263-d features (T, 263) -> (T, 22, 3), or of its frames first..
+    only, (T - first, 22, 3) (or B clips of one length, (B, T, 263)).
 
     The features are turned into joints with :func:`motion.features_to_joints` (their own root
     trajectory), whose root path is then factored out again with :func:`local_pose_from_joints`.
     Going through joints, rather than reading the RIC channels directly, expresses the body in the
     same (smoothed hips-and-shoulders) heading frame the controller is trained on, so the body
-    neither gains nor loses a twist when it is put back on a path.
+    neither gains nor loses a twist when it is put back on a path. With `first` the heading is
+    still smoothed over all T frames, from their pelvis, hips and shoulders only: the frames
+    first.. are the same numbers as those of the whole (the stream's window, most of which only
+    its heading reads).
     """
-    return local_pose_from_joints(features_to_joints(np.asarray(features, dtype=np.float32)))
+    features = np.asarray(features, dtype=np.float32)
+    if not first:
+        return local_pose_from_joints(features_to_joints(features))
+    face = (0, *FACE_JOINTS)  # what root_path_from_joints reads
+    skeleton = np.zeros(features.shape[:-1] + (NUM_JOINTS, 3), np.float32)
+    skeleton[..., face, :] = features_to_joints(features, only=face)
+    path = root_path_from_joints(skeleton)[..., first:, :]
+    return local_pose_from_joints(features_to_joints(features, first=first), path)
 
 
 def _travel(root_path: np.ndarray, sigma: float = 2.0) -> tuple[np.ndarray, np.ndarray]:

@@ -449,16 +449,14 @@ class TokenGPT(nn.Module):
         if cache.length + N > block:
             self._reprime(cache, min(block // 2, block - N))
         valid = torch.ones(tokens.shape, dtype=torch.bool, device=tokens.device)
-        length = cache.length
+        length, room = cache.length, self._room(cache)
         if N == 1 and self._on_numpy(tokens.shape[0]):
             self._check_path(tokens, path)
-            room = self._room(cache)
             past = (room.kv, length)
             logits, kv = self._numpy_step(self, tokens, path, cache.text, cache.pos, cache.valid, past)
         else:
             pos = cache.pos[:, None] + torch.arange(N, device=tokens.device)[None]
             x = self._embed(tokens, path.to(cache.text.dtype), cache.text, pos)
-            room = self._room(cache)
             logits, kv = self._run(x, valid, (room.kv, length), cache.valid)
         # The new columns written after the cached ones; the cache's fields are views of them.
         end = length + N

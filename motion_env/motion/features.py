@@ -6,6 +6,7 @@ training (torch is imported inside it, so the numpy functions do not pull it in)
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -163,35 +164,59 @@ def recover_root(features: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     is the features' smoothed root yaw (θ convention of this module, 0 at frame 0) and the root
     starts at x = z = 0.
     """
-    features = np.asarray(features, dtype=np.float64)
+    features = np.asarray(features)
     _check_features(features)
-    half = np.zeros(features.shape[:-1])
-    half[..., 1:] = np.cumsum(features[..., :-1, 0], axis=-1)
+    return _root_of(np.asarray(features[..., :4], dtype=np.float64))
+
+
+def _root_of(channels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`recover_root` from the features' first four channels (..., T, 4), float64."""
+    half = np.zeros(channels.shape[:-1])
+    half[..., 1:] = np.cumsum(channels[..., :-1, 0], axis=-1)
     heading = -2.0 * half  # the body-frame quaternion is a yaw of 2 * half; its inverse is θ
-    step = np.zeros(features.shape[:-1] + (3,))
-    step[..., 1:, 0] = features[..., :-1, 1]
-    step[..., 1:, 2] = features[..., :-1, 2]
+    step = np.zeros(channels.shape[:-1] + (3,))
+    step[..., 1:, 0] = channels[..., :-1, 1]
+    step[..., 1:, 2] = channels[..., :-1, 2]
     root = np.cumsum(rotate_y(step, heading), axis=-2)
-    root[..., 1] = features[..., 3]
+    root[..., 1] = channels[..., 3]
     return heading, root
 
 
-def features_to_joints(features: np.ndarray | torch.Tensor) -> np.ndarray | torch.Tensor:
+def features_to_joints(
+    features: np.ndarray | torch.Tensor, first: int = 0, only: Sequence[int] | None = None
+) -> np.ndarray | torch.Tensor:
     """HumanML3D's ``recover_from_ric``: features (..., T, 263) -> joint positions (..., T, 22, 3).
 
     Uses the root channels and the RIC positions (not the rotations). A torch tensor is handed to
     :func:`features_to_joints_torch` and a tensor comes back; otherwise returns float32 numpy.
+
+    `first` and `only` ask for part of it, the same numbers as that part of the whole (the root is
+    integrated from frame 0 either way): frames first.. only, and only the joints `only` (indices,
+    in that order), (..., T - first, len(only), 3).
     """
     if type(features).__module__.startswith("torch"):
-        return features_to_joints_torch(features)
-    features = np.asarray(features, dtype=np.float64)
+        whole = features_to_joints_torch(features)[..., first:, :, :]
+        return whole if only is None else whole[..., list(only), :]
+    features = np.asarray(features)
     _check_features(features)
     check_finite(features.reshape(-1, FEATURE_DIM), "features", "frames")
-    heading, root = recover_root(features)
-    ric = features[..., RIC_SLICE].reshape(features.shape[:-1] + (NUM_JOINTS - 1, 3))
-    joints = rotate_y(ric, heading[..., None])
+    # float64 for the channels read (the root's and the RIC positions), not all 263
+    heading, root = _root_of(np.asarray(features[..., :4], dtype=np.float64))
+    heading, root = heading[..., first:], root[..., first:, :]
+    ric = np.asarray(features[..., first:, RIC_SLICE], dtype=np.float64)
+    ric = ric.reshape(features.shape[:-2] + (-1, NUM_JOINTS - 1, 3))
+    if only is None:
+        joints = rotate_y(ric, heading[..., None])
+        joints[..., [0, 2]] += root[..., None, [0, 2]]
+        return np.concatenate([root[..., None, :], joints], axis=-2).astype(np.float32)
+    order = np.asarray(only, np.int64)
+    out = np.empty(root.shape[:-1] + (len(order), 3), np.float32)
+    body = np.nonzero(order > 0)[0]
+    joints = rotate_y(ric[..., order[body] - 1, :], heading[..., None])  # per joint, as the whole's
     joints[..., [0, 2]] += root[..., None, [0, 2]]
-    return np.concatenate([root[..., None, :], joints], axis=-2).astype(np.float32)
+    out[..., body, :] = joints
+    out[..., order == 0, :] = root[..., None, :]
+    return out
 
 
 def features_to_joints_torch(features: torch.Tensor) -> torch.Tensor:

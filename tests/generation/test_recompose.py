@@ -38,6 +38,21 @@ def test_recompose_round_trips_real_motion(humanml3d_sample) -> None:
     )
 
 
+def test_part_of_the_local_pose_is_the_same_numbers_as_the_whole(humanml3d_sample) -> None:
+    """The stream's window: the local pose of its last frames only (the heading still smoothed
+    over the window) and joints of some frames and joints only are bit for bit the whole's."""
+    _, features = humanml3d_sample
+    feats = np.stack([features[:40], features[30:70]])
+    whole = rc.local_pose_from_features(feats)
+    for first in (1, 20, 36, 39):
+        np.testing.assert_array_equal(rc.local_pose_from_features(feats, first=first), whole[:, first:])
+        np.testing.assert_array_equal(rc.local_pose_from_features(feats[1], first=first), whole[1, first:])
+    joints = features_to_joints(feats)
+    np.testing.assert_array_equal(features_to_joints(feats, first=36), joints[:, 36:])
+    np.testing.assert_array_equal(features_to_joints(feats, only=(17, 0, 2)), joints[:, :, [17, 0, 2]])
+    np.testing.assert_array_equal(features_to_joints(feats, first=5, only=(0,)), joints[:, 5:, :1])
+
+
 def test_compose_of_a_batch_equals_composing_each_clip(humanml3d_sample, random_generator) -> None:
     _, features = humanml3d_sample
     feats = np.stack([features[:40], features[10:50], features[20:60]])  # three clips of 40 frames
