@@ -6,9 +6,10 @@ target every step, at one frame a step or the learning default of four), each st
 wrapped in a wall-clock timer for the timed steps; per token, the milliseconds of each stage
 (nested: the path's planning holds the controller's roll-out and the look-ahead head). The
 timers cost about a microsecond a call. With ``--calibrate``, the calibration workload beside the
-run and each time also as its quiet-machine equivalent. With ``--num-envs N`` (N > 1) the native
-vector env instead, as the bench drives it (each env its sampled route, no episode ending): one
-token is then every env's, each stage one batched call.
+run and each time also as its quiet-machine equivalent. The first line also gives the step's time
+outside the tokens (the env's commands, observations and emitted frames). With ``--num-envs N``
+(N > 1) the native vector env instead, as the bench drives it (each env its sampled route, no
+episode ending): one token is then every env's, each stage one batched call.
 
     python scripts/stage_times.py --agent learner_4 --steps 300
     python scripts/stage_times.py --agent learner_4 --steps 60 --num-envs 64 --calibrate
@@ -147,9 +148,10 @@ def main() -> None:
                 setattr(cls, name, method)
     scale = REFERENCE_CALIBRATION_S / calibration_s() if args.calibrate else None
     tokens = max(calls["token (all stages)"], 1)
+    outside = (wall - totals["token (all stages)"]) / args.steps * 1e3  # the env's own bookkeeping
     print(
         f"{args.agent}, {args.num_envs} env(s): {args.steps} steps, {tokens} tokens, "
-        f"{wall / args.steps * 1e3:.2f} ms a step"
+        f"{wall / args.steps * 1e3:.2f} ms a step, of which {outside:.2f} outside the tokens"
     )
     print(f"{'stage':<34}{'ms/token':>10}{'quiet equiv.':>14}{'calls/token':>13}")
     for _, _, label in STAGES:
