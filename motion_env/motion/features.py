@@ -7,7 +7,7 @@ training (torch is imported inside it, so the numpy functions do not pull it in)
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
@@ -195,10 +195,12 @@ def features_to_joints(
     in that order), (..., T - first, len(only), 3).
     """
     if type(features).__module__.startswith("torch"):
+        _check_part(first, only, int(features.shape[-2]) if features.ndim >= 2 else 0)
         whole = features_to_joints_torch(features)[..., first:, :, :]
         return whole if only is None else whole[..., list(only), :]
     features = np.asarray(features)
     _check_features(features)
+    _check_part(first, only, features.shape[-2])
     check_finite(features.reshape(-1, FEATURE_DIM), "features", "frames")
     # float64 for the channels read (the root's and the RIC positions), not all 263
     heading, root = _root_of(np.asarray(features[..., :4], dtype=np.float64))
@@ -217,6 +219,18 @@ def features_to_joints(
     out[..., body, :] = joints
     out[..., order == 0, :] = root[..., None, :]
     return out
+
+
+def _is_index(value: Any, stop: int) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and 0 <= value < stop
+
+
+def _check_part(first: int, only: Sequence[int] | None, frames: int) -> None:
+    """ValueError unless `first` is a frame of `frames` and `only` lists joint indices."""
+    if not _is_index(first, max(frames, 1)):
+        raise ValueError(f"first must be a frame index in [0, {frames}), got {first!r}")
+    if only is not None and not (list(only) and all(_is_index(j, NUM_JOINTS) for j in only)):
+        raise ValueError(f"only must list joint indices in [0, {NUM_JOINTS}), got {list(only)!r}")
 
 
 def features_to_joints_torch(features: torch.Tensor) -> torch.Tensor:

@@ -51,6 +51,10 @@ def test_part_of_the_local_pose_is_the_same_numbers_as_the_whole(humanml3d_sampl
     np.testing.assert_array_equal(features_to_joints(feats, first=36), joints[:, 36:])
     np.testing.assert_array_equal(features_to_joints(feats, only=(17, 0, 2)), joints[:, :, [17, 0, 2]])
     np.testing.assert_array_equal(features_to_joints(feats, first=5, only=(0,)), joints[:, 5:, :1])
+    bad_parts = [{"first": 40}, {"first": -1}, {"first": 1.5}, {"only": (22,)}, {"only": ()}]
+    for bad in [*bad_parts, {"only": (0.5,)}]:
+        with pytest.raises(ValueError, match="first must be|only must"):
+            features_to_joints(feats, **bad)
 
 
 def test_compose_of_a_batch_equals_composing_each_clip(humanml3d_sample, random_generator) -> None:
