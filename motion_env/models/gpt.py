@@ -422,7 +422,7 @@ class TokenGPT(nn.Module):
         if cache.room is not None:
             return cache.room
         (rows, length), c = cache.valid.shape, self.config
-        device, shape = cache.text.device, (rows, c.n_head, c.block_size, c.n_embd // c.n_head)
+        device, kv_shape = cache.text.device, (rows, c.n_head, c.block_size, c.n_embd // c.n_head)
 
         def window(part: torch.Tensor | None, shape: tuple[int, ...], dim: int) -> torch.Tensor:
             buffer = torch.zeros(shape, dtype=cache.text.dtype if part is None else part.dtype, device=device)
@@ -431,7 +431,7 @@ class TokenGPT(nn.Module):
             return buffer
 
         past = cache.kv or [(None, None)] * c.n_layer  # nothing cached yet: empty buffers
-        kv = [(window(k, shape, 2), window(v, shape, 2)) for k, v in past]
+        kv = [(window(k, kv_shape, 2), window(v, kv_shape, 2)) for k, v in past]
         cache.room = CacheRoom(
             kv=kv,
             valid=window(cache.valid, (rows, c.block_size), 1),

@@ -207,15 +207,11 @@ def features_to_joints(
     heading, root = heading[..., first:], root[..., first:, :]
     ric = np.asarray(features[..., first:, RIC_SLICE], dtype=np.float64)
     ric = ric.reshape(features.shape[:-2] + (-1, NUM_JOINTS - 1, 3))
-    if only is None:
-        joints = rotate_y(ric, heading[..., None])
-        joints[..., [0, 2]] += root[..., None, [0, 2]]
-        return np.concatenate([root[..., None, :], joints], axis=-2).astype(np.float32)
-    order = np.asarray(only, np.int64)
-    out = np.empty(root.shape[:-1] + (len(order), 3), np.float32)
-    body = np.nonzero(order > 0)[0]
-    joints = rotate_y(ric[..., order[body] - 1, :], heading[..., None])  # per joint, as the whole's
+    order = np.arange(NUM_JOINTS) if only is None else np.asarray(only, np.int64)
+    body = np.nonzero(order > 0)[0]  # joint 0 is the root itself, the others its RIC positions
+    joints = rotate_y(ric[..., order[body] - 1, :], heading[..., None])  # per joint: a part is the same
     joints[..., [0, 2]] += root[..., None, [0, 2]]
+    out = np.empty(root.shape[:-1] + (len(order), 3), np.float32)
     out[..., body, :] = joints
     out[..., order == 0, :] = root[..., None, :]
     return out
