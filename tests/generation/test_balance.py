@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from motion_env.generation.balance import BALANCE_WEIGHT, StreamBalance, balance_shift
+from motion_env.generation.balance import BALANCE_WEIGHT, StreamBalance, _pressure_point, balance_shift
 from motion_env.generation.height_plan import GRAVITY
 from motion_env.motion.mass import COM_WEIGHTS, centre_of_mass
 from motion_env.motion.skeleton import FPS, LEGS
@@ -27,13 +27,15 @@ def _body(frames: int, lean: float) -> np.ndarray:
 
 def _miss(joints: np.ndarray, shift: np.ndarray, stance: np.ndarray) -> np.ndarray:
     """How far the horizontal (z) acceleration of the centre of mass, with the body moved by
-    `shift` and the standing foot left where it is, is from the push through the centre of mass."""
+    `shift` and the standing foot left where it is, is from any push the foot can give: one
+    through the centre of mass from a point between its heel (ankle) and its toe."""
     c = centre_of_mass(joints)
     z = c[:, 2] + shift[:, 1]
     acc = (z[2:] - 2 * z[1:-1] + z[:-2]) * FPS**2
-    foot = 0.5 * (joints[:, LEGS[0][2], 2] + joints[:, LEGS[0][3], 2])
-    want = (z - foot) * GRAVITY / c[:, 1]
-    return np.abs(acc - want[1:-1])[stance]
+    sole = joints[:, [LEGS[0][2], LEGS[0][3]], 2]
+    k = GRAVITY / c[:, 1]
+    low, high = k * (z - sole.max(axis=1)), k * (z - sole.min(axis=1))
+    return np.maximum(np.maximum(low[1:-1] - acc, acc - high[1:-1]), 0.0)[stance]
 
 
 def _run(frames: int = 60, speed: float = 3.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -85,6 +87,46 @@ def test_waypoint_frames_keep_their_place_and_a_balanced_body_is_left_alone() ->
     z = z + free[:, 1]
     assert np.abs(z[2:] - 2 * z[1:-1] + z[:-2]).mean() < 0.5 * before
     assert BALANCE_WEIGHT > 0
+
+
+def _standing_apart(frames: int, com_x: float) -> np.ndarray:
+    """A still stick body on both feet 0.3 m apart (left at x = -0.15, right at x = +0.15), its
+    centre of mass at x = `com_x`, z = 0: (T, 22, 3)."""
+    pose = _body(1, lean=0.0)[0]
+    feet = [j for leg in LEGS for j in leg[2:]]
+    for side, (_, _, ankle, toe) in zip((-0.15, 0.15), LEGS, strict=True):
+        pose[[ankle, toe], 0] = side
+    rest = [j for j in range(22) if j not in feet]
+    off = centre_of_mass(pose)[[0, 2]] - [com_x, 0.0]
+    pose[rest] -= [off[0], 0.0, off[1]] / np.float64(sum(COM_WEIGHTS[rest]))
+    return np.repeat(pose[None], frames, axis=0)
+
+
+def test_the_push_may_start_anywhere_under_the_feet() -> None:
+    # Standing on both feet, the floor can push from any point between them: a still body whose
+    # centre of mass is between its feet (over neither foot's middle) needs no shift, one whose
+    # centre of mass is outside them is moved back towards them.
+    frames, contacts = 40, np.ones((40, 4))
+    between = balance_shift(_standing_apart(frames, com_x=0.1), contacts, np.array([0]))
+    assert np.abs(between).max() < 1e-6
+    outside = balance_shift(_standing_apart(frames, com_x=0.25), contacts, np.array([0]))
+    assert np.median(outside[1:, 0]) < -1e-3  # towards the feet (-x), the first frame held
+    assert np.abs(_streamed(_standing_apart(frames, com_x=0.1), contacts)).max() < 1e-6
+
+
+def test_the_pressure_point_is_the_nearest_point_of_the_support() -> None:
+    square = np.array([[0.0, 0.0], [0.0, 0.2], [0.1, 0.0], [0.1, 0.2]])  # two feet side by side
+    wanted = np.array([[0.05, 0.1], [0.3, 0.1], [0.05, -0.1], [0.2, 0.3]])
+    both = np.ones((4, 4), bool)
+    np.testing.assert_allclose(
+        _pressure_point(wanted, np.repeat(square[None], 4, 0), both),
+        [[0.05, 0.1], [0.1, 0.1], [0.05, 0.0], [0.1, 0.2]],
+    )
+    left_only = np.array([[True, True, False, False]] * 4)  # a line: the left foot, heel to toe
+    np.testing.assert_allclose(
+        _pressure_point(wanted, np.repeat(square[None], 4, 0), left_only),
+        [[0.0, 0.1], [0.0, 0.1], [0.0, 0.0], [0.0, 0.2]],
+    )
 
 
 def _streamed(
