@@ -195,15 +195,15 @@ class StreamBalance:
         bears = np.concatenate([self._bearing[rows, None], bearing[:, :-1]], axis=1)
         k = _stiffness(accel[..., 1], com[:, 1:-1, 1], bears.any(axis=-1))
         known = np.isfinite(accel).all(axis=-1)  # not on a first token, before its first frame
-        rhs = _wanted_push(com[:, 1:-1], np.where(known[..., None], accel, 0.0), k, on, bears)
-        rhs = np.concatenate([rhs[..., :1], np.zeros_like(rhs[..., :1]), rhs[..., 1:]], -1) - accel
+        known_accel = np.where(known[..., None], accel, 0.0)
+        rhs = _wanted_push(com[:, 1:-1], known_accel, k, on, bears) - known_accel[..., [0, 2]]
         f2 = float(FPS**2)
         # The horizon's equations (k 0, rhs 0): the shift's velocity holds.
         k_all = np.concatenate([np.where(known, k, 0.0), np.zeros((n, span - 2 - rate))], axis=1)
         coef = np.stack([np.full_like(k_all, f2), -2.0 * f2 - k_all, np.full_like(k_all, f2)], -1)
         coef[:, :rate] *= known[..., None]  # an equation on frames not emitted drops out
         rows_rhs = np.zeros((n, span - 2, 2))
-        rows_rhs[:, :rate] = np.where(known[..., None], rhs[..., [0, 2]], 0.0)
+        rows_rhs[:, :rate] = np.where(known[..., None], rhs, 0.0)
         pull = np.full((n, span), BALANCE_WEIGHT**2)
         pull[:, :2] += _ANCHOR  # the emitted frames keep their shift
         first = np.isnan(self._com[rows, 1, 0])
