@@ -30,7 +30,7 @@ import torch.nn.functional as F
 from motion_env.models.checkpoint import config_from_dict, read_checkpoint
 from motion_env.models.normalizer import Normalizer
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
-from motion_env.motion.skeleton import FOOT_CONTACT, NUM_JOINTS, RIC, ROOT_ROT_VEL
+from motion_env.motion.skeleton import FOOT_CONTACT, NUM_JOINTS, RIC, ROOT_ROT_VEL, ROOT_Y
 from motion_env.motion.validation import NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt
 from motion_env.training import loop
 from motion_env.training.config import TrainConfig
@@ -53,6 +53,7 @@ class VQVAETrainConfig(TrainConfig):
     acc_weight: NonNegativeFloat = 0.0  # L1 loss on their second differences (acceleration)
     jerk_weight: NonNegativeFloat = 0.0  # L1 loss on their third differences (jerk)
     ripple_weight: NonNegativeFloat = 0.0  # L1 loss on the token-periodic part of the acceleration error
+    height_acc_weight: NonNegativeFloat = 0.0  # L1 loss on the second differences of the root height
     smooth_joints: str = "all"  # joints those losses apply to: "all", or "upper" (spine, head, arms)
     read_weight: PositiveFloat = 1.0  # reconstruction weight of the channels the body is read from
     context: NonNegativeInt = 0  # frames before each window decoded as its history, not scored (decoder only)
@@ -158,7 +159,8 @@ def token_ripple(error: torch.Tensor, rate: int) -> torch.Tensor:
 def derivative_losses(
     recon: torch.Tensor, target: torch.Tensor, config: VQVAETrainConfig, rate: int = 4
 ) -> dict:
-    """L1 losses on the 1st/2nd/3rd frame differences of the root-relative joint positions.
+    """L1 losses on the 1st/2nd/3rd frame differences of the root-relative joint positions (and
+    on the 2nd of the root height).
 
     Args:
         recon, target: (B, T, 263) normalised features, T starting on a token boundary.
@@ -166,8 +168,8 @@ def derivative_losses(
         rate: frames per token (for ``ripple_weight``).
 
     Returns:
-        {"vel_l1", "acc_l1", "jerk_l1", "ripple_l1"} (those with a weight) and "smooth": their
-        weighted sum.
+        {"vel_l1", "acc_l1", "jerk_l1", "ripple_l1", "height_acc_l1"} (those with a weight) and
+        "smooth": their weighted sum.
     """
     # One Std for all RIC channels (HumanML3D's grouped statistics), so differences of the
     # normalised channels are the joints' differences in one scale. They are far below 1, where
@@ -195,6 +197,14 @@ def derivative_losses(
         # boundary (frame rate) at phase 0.
         terms["ripple_l1"] = token_ripple(error(2)[:, rate - 1 :], rate).abs().mean()
         total = total + config.ripple_weight * terms["ripple_l1"]
+    if config.height_acc_weight > 0:
+        # The root height is not among the RIC channels: without this its decoded quantisation
+        # noise bobs a standing body's pelvis at 1.3 m/s^2 where a real one moves at 0.05.
+        height = recon[..., ROOT_Y.start], target[..., ROOT_Y.start]
+        terms["height_acc_l1"] = (
+            (torch.diff(height[0], n=2, dim=1) - torch.diff(height[1], n=2, dim=1)).abs().mean()
+        )
+        total = total + config.height_acc_weight * terms["height_acc_l1"]
     return {**terms, "smooth": total}
 
 

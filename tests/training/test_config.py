@@ -74,7 +74,8 @@ def test_defaults_are_the_trainers_defaults() -> None:
         "seed": 0, "device": "cpu", "resume": True, "log_every": 50, "save_every": 250, "eval_every": 0,
         "max_minutes": math.inf, "progress": True, "steps": 3000, "batch_size": 64, "lr": 4e-4, "window": 64,
         "init": None, "freeze_encoder": False, "vel_weight": 0.0, "acc_weight": 0.0, "jerk_weight": 0.0,
-        "ripple_weight": 0.0, "smooth_joints": "all", "read_weight": 1.0, "context": 0,
+        "ripple_weight": 0.0, "height_acc_weight": 0.0, "smooth_joints": "all", "read_weight": 1.0,
+        "context": 0,
     }  # fmt: skip
     assert GPTTrainConfig().to_dict() == {
         "seed": 0, "device": "cpu", "resume": True, "log_every": 50, "save_every": 100, "eval_every": 0,

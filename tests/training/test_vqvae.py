@@ -142,6 +142,24 @@ def test_ripple_loss_sees_a_stalling_decoder_and_not_a_smooth_one() -> None:
     assert derivative_losses(offset, target, config)["ripple_l1"] < 1e-6
 
 
+def test_height_loss_sees_a_bobbing_root_and_nothing_else() -> None:
+    # The root height (channel 3) is outside the RIC channels the joints' losses read: its own
+    # acceleration loss sees a decoded bob there, not a steady offset, and not a bob of a joint.
+    t = torch.arange(48, dtype=torch.float32)
+    target = torch.zeros(1, 48, 263)
+    target[..., 3] = 0.01 * t
+    bob = target.clone()
+    bob[:, ::2, 3] += 0.02
+    config = VQVAETrainConfig(height_acc_weight=2.0)
+    losses = derivative_losses(bob, target, config)
+    assert losses["height_acc_l1"] > 1e-2 and losses["smooth"] == pytest.approx(2.0 * losses["height_acc_l1"])
+    assert derivative_losses(target + 0.5, target, config)["height_acc_l1"] < 1e-6
+    joint = target.clone()
+    joint[:, ::2, 4] += 0.02
+    assert derivative_losses(joint, target, config)["height_acc_l1"] == 0.0
+    assert "height_acc_l1" not in derivative_losses(bob, target, VQVAETrainConfig())
+
+
 def test_read_channels_weigh_what_the_generator_reads() -> None:
     # The body is built from the root channels and the joints' positions; the rotations and local
     # velocities are not read, so an error there adds nothing, and one in a read channel adds
