@@ -2,9 +2,9 @@
 (waves, raised hands, goodbyes) made again as ``motion-env eval natural`` makes them (the take's
 caption, from its start, along its own root path), against the real takes.
 
-Per clip, the 99th percentile of the pelvis's horizontal acceleration (m/s^2); the script prints
-the median and the 90th percentile over the clips of each side. Whole clips by default,
-``--stage streamed`` frame by frame as the environments emit them.
+Per clip, the 99th percentile of the pelvis's horizontal acceleration and of its vertical one (a
+bob; m/s^2); the script prints the median and the 90th percentile over the clips of each side.
+Whole clips by default, ``--stage streamed`` frame by frame as the environments emit them.
 
     python scripts/measure_standing_sway.py --data data/mocap --seeds 2
 """
@@ -24,10 +24,14 @@ from motion_env.motion.trajectory import root_path_from_joints
 STANDING = ("wave", "raise", "bye")  # the actions (label prefixes) done without travelling
 
 
-def pelvis_sway(joints: np.ndarray) -> float:
-    """99th percentile of the pelvis's horizontal acceleration (m/s^2) of (T, 22, 3) joints."""
-    pelvis = np.asarray(joints, np.float64)[:, 0, [0, 2]]
-    return float(np.percentile(np.linalg.norm(np.diff(pelvis, 2, axis=0), axis=-1) * FPS**2, 99))
+def pelvis_sway(joints: np.ndarray) -> tuple[float, float]:
+    """99th percentiles of the pelvis's horizontal and vertical acceleration (m/s^2) of (T, 22, 3)
+    joints."""
+    accel = np.diff(np.asarray(joints, np.float64)[:, 0], 2, axis=0) * FPS**2
+    return (
+        float(np.percentile(np.linalg.norm(accel[:, [0, 2]], axis=-1), 99)),
+        float(np.percentile(np.abs(accel[:, 1]), 99)),
+    )
 
 
 def made_again(gen: MotionGenerator, text: str, joints: np.ndarray, seed: int, streamed: bool) -> np.ndarray:
@@ -64,10 +68,12 @@ def main() -> None:
                 clip = made_again(gen, take.text, take.joints, seed, args.stage == "streamed")
                 made.append(pelvis_sway(clip))
     for name, values in (("made again", made), ("real takes", real)):
-        print(
-            f"{name:<11} {len(values):4d} clips: pelvis horizontal acceleration p99, median "
-            f"{np.median(values):.2f}, 90th percentile {np.percentile(values, 90):.2f} m/s^2"
-        )
+        for axis, column in (("horizontal", 0), ("vertical", 1)):
+            v = np.asarray(values)[:, column]
+            print(
+                f"{name:<11} {len(v):4d} clips: pelvis {axis} acceleration p99, median "
+                f"{np.median(v):.2f}, 90th percentile {np.percentile(v, 90):.2f} m/s^2"
+            )
 
 
 if __name__ == "__main__":
