@@ -16,10 +16,9 @@ import argparse
 import numpy as np
 import torch
 
-from motion_env.evaluation.naturalness import extended_path, naturalness_takes, travel_waypoints
+from motion_env.evaluation.naturalness import make_again, naturalness_takes
 from motion_env.generation.generator import MotionGenerator
 from motion_env.motion.skeleton import FPS
-from motion_env.motion.trajectory import root_path_from_joints
 
 STANDING = ("wave", "raise", "bye")  # the actions (label prefixes) done without travelling
 
@@ -32,18 +31,6 @@ def pelvis_sway(joints: np.ndarray) -> tuple[float, float]:
         float(np.percentile(np.linalg.norm(accel[:, [0, 2]], axis=-1), 99)),
         float(np.percentile(np.abs(accel[:, 1]), 99)),
     )
-
-
-def made_again(gen: MotionGenerator, text: str, joints: np.ndarray, seed: int, streamed: bool) -> np.ndarray:
-    """A take made again as the naturalness evaluation makes it: (T, 22, 3) joints."""
-    path = extended_path(root_path_from_joints(joints))
-    waypoints = travel_waypoints(path)
-    if streamed:
-        stream = gen.stream([text], [waypoints], starts=path[:1], seed=seed, infeasible="warn")
-        return np.stack([stream.step()[0] for _ in range(len(joints))])
-    return gen.generate(text, waypoints, len(path), seed=seed, start=path[0], infeasible="warn").joints[
-        : len(joints)
-    ]
 
 
 def main() -> None:
@@ -65,8 +52,7 @@ def main() -> None:
         for take in takes[action][: args.takes]:
             real.append(pelvis_sway(take.joints))
             for seed in range(args.seeds):
-                clip = made_again(gen, take.text, take.joints, seed, args.stage == "streamed")
-                made.append(pelvis_sway(clip))
+                made.append(pelvis_sway(make_again(gen, take, seed, args.stage)))
     for name, values in (("made again", made), ("real takes", real)):
         for axis, column in (("horizontal", 0), ("vertical", 1)):
             v = np.asarray(values)[:, column]

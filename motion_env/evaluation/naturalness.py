@@ -74,6 +74,7 @@ __all__ = [
     "evaluate_naturalness",
     "naturalness_takes",
     "extended_path",
+    "make_again",
     "mix_weights",
     "travel_waypoints",
 ]
@@ -252,6 +253,14 @@ def _on_real_path(gen: Any, take: NaturalTake, seed: int) -> np.ndarray:
 
 
 _MAKERS = {"generated": _generated, "streamed": _streamed, "real-path": _on_real_path}
+
+
+def make_again(gen: Any, take: NaturalTake, seed: int, stage: str = "generated") -> np.ndarray:
+    """`take` made again by `gen` as the evaluation's `stage` makes it ("generated", "streamed" or
+    "real-path"; seed: the generator's): (T, 22, 3) joints."""
+    if stage not in _MAKERS:
+        raise ValueError(f"stage must be one of {sorted(_MAKERS)}, got {stage!r}")
+    return _MAKERS[stage](gen, take, seed)
 
 
 @dataclass

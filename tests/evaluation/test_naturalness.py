@@ -194,10 +194,10 @@ def test_report_on_the_random_model(tiny_generator, natural_dataset, classifier_
 def test_streamed_and_whole_clips_make_the_same_request(tiny_generator, natural_dataset) -> None:
     # Same caption, start and timed waypoints: frame by frame, the root passes the take's
     # waypoints as the whole clip does (both snap the path through them).
-    from motion_env.evaluation.naturalness import _generated, _streamed
+    from motion_env.evaluation.naturalness import make_again
 
     take = naturalness_takes(natural_dataset, "test")["walk"][0]
-    whole, streamed = _generated(tiny_generator, take, 0), _streamed(tiny_generator, take, 0)
+    whole, streamed = make_again(tiny_generator, take, 0), make_again(tiny_generator, take, 0, "streamed")
     assert streamed.shape == whole.shape == take.joints.shape
     wp = travel_waypoints(extended_path(root_path_from_joints(take.joints)))
     inside = wp[wp[:, 2] < len(take.joints)]
@@ -206,6 +206,8 @@ def test_streamed_and_whole_clips_make_the_same_request(tiny_generator, natural_
         for joints in (whole, streamed):
             np.testing.assert_allclose(joints[int(frame), 0, [0, 2]], [x, z], atol=1e-3)
     assert np.abs(streamed - whole).max() > 1e-3  # the causal stages are not the whole clip's
+    with pytest.raises(ValueError, match="stage must be one of"):
+        make_again(tiny_generator, take, 0, "vqvae")  # no seed to make it with: not a maker
 
 
 def test_the_real_path_stage_walks_the_takes_own_path(tiny_generator, natural_dataset) -> None:
