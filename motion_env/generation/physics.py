@@ -6,7 +6,8 @@ floor. This stage, run on the feet stage's output, fixes the vertical motion of 
 
 - **ground**: the body stands on its planted feet (a body that floats above or sinks below the
   lowest foot the decoder marks planted is lowered or raised to it, the estimate followed over
-  about half a second, and raised where a foot would still be below the floor); a foot the
+  about half a second, and raised where a foot would still be more than
+  :data:`SINK_TOLERANCE` below the floor); a foot the
   decoder marks planted while the body drags it faster than its flags allow is a free foot
   (:data:`DRAG_STEP`); a planted foot's lowest sole point is on the floor (except on the last
   frame of its contact, where it lifts off: :func:`_lifting_off`), a free foot none below it and,
@@ -87,6 +88,11 @@ FLAT_ANKLE_PRIOR = 16
 # frames running, is dragged, not planted (PhysicsFilter._planted): HumanML3D's contact flags
 # mark feet slower than about 4.5 cm a frame (motion.features.FOOT_CONTACT_THRESHOLD).
 DRAG_STEP = 0.045
+# How far (m) a sole may dip below the floor before the body is raised for it. The grounding
+# re-solves the legs anyway and its knees take up a shallow dip; raising the body at once for
+# each one made a standing body bob with its decoded legs' jitter (raised by up to 0.8 cm on a
+# third of a calm clip's frames: 1.1-1.6 m/s^2 of vertical acceleration, a real one 0.4).
+SINK_TOLERANCE = 0.02
 # Height plans per call at most: each finds landings and take-offs the flags missed.
 _REPLANS = 4
 
@@ -240,8 +246,9 @@ class PhysicsFilter:
         r, n = com.shape
         floating = self._float(rows, support_gap(soles.reshape(-1, 2), planted.reshape(-1, 2)).reshape(r, n))
         # The body is wanted standing on its planted feet, and raised where a foot would still be
-        # below the floor (a landing the flags have not seen: a straight leg cannot shorten).
-        raw = com - floating + np.maximum(floating - soles.min(axis=2), 0.0)
+        # more than SINK_TOLERANCE below the floor (a landing the flags have not seen: a straight
+        # leg cannot shorten).
+        raw = com - floating + np.maximum(floating - soles.min(axis=2) - SINK_TOLERANCE, 0.0)
         flights = _cap_flights(flight, self.airborne[rows])
         support = np.where(planted.any(axis=2, keepdims=True), planted, True)
         settled = np.zeros((r, n), dtype=bool)  # frames found on the floor: they stay there

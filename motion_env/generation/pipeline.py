@@ -25,6 +25,8 @@ stage methods causally, one token at a time, in the same order):
    the root path and rebuilt on the skeleton's bone lengths (decoded legs come out up to 9 cm
    short), its wrists where the decoder put them (:func:`~motion_env.generation.recompose.on_bone_lengths`),
    and with one pelvis shape for the whole clip (:func:`~motion_env.motion.kinematics.hold_pelvis_shape`);
+   the pelvis keeps its decoded height, and the feet go where the legs put them (6 puts them on
+   the floor);
 6. **feet and physics** (:meth:`Pipeline.balance`, :class:`~motion_env.generation.feet.FootPinner`,
    :mod:`motion_env.generation.physics`): whole clips' root paths are shifted a few centimetres so
    that the floor's push passes through the centre of mass (:mod:`motion_env.generation.balance`;

@@ -20,7 +20,6 @@ from motion_env.motion.kinematics import BONE_CHILDREN, BONE_PARENTS, BONE_SHARE
 from motion_env.motion.skeleton import (
     BONE_LENGTHS,
     CHAINS,
-    FOOT_JOINTS,
     LEGS,
     NUM_JOINTS,
     PARENTS,
@@ -71,7 +70,7 @@ def local_pose_torch(features: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
 
 def with_bone_lengths_torch(joints: torch.Tensor) -> torch.Tensor:
     """:func:`motion_env.motion.kinematics.with_bone_lengths` with the canonical lengths: (T, 22, 3)."""
-    return _feet_at_height_torch(_rebuild_torch(joints, joints[:, 0]), joints)
+    return _rebuild_torch(joints, joints[:, 0])
 
 
 def fit_bone_lengths_torch(joints: torch.Tensor, iterations: int = FIT_ITERATIONS) -> torch.Tensor:
@@ -83,7 +82,7 @@ def fit_bone_lengths_torch(joints: torch.Tensor, iterations: int = FIT_ITERATION
         bone = x[:, BONE_CHILDREN] - x[:, BONE_PARENTS]
         excess = (1.0 - target / bone.norm(dim=-1, keepdim=True).clamp_min(1e-9)) * bone
         x = x - torch.einsum("jb,tbk->tjk", share, excess)
-    return _feet_at_height_torch(_rebuild_torch(x, joints[:, 0]), joints)
+    return _rebuild_torch(x, joints[:, 0])
 
 
 def _rebuild_torch(joints: torch.Tensor, pelvis: torch.Tensor) -> torch.Tensor:
@@ -98,13 +97,6 @@ def _rebuild_torch(joints: torch.Tensor, pelvis: torch.Tensor) -> torch.Tensor:
         direction = torch.where(norm > 1e-9, vec / norm.clamp_min(1e-9), rest[j])
         out.append(out[PARENTS[j]] + direction * lengths[j])
     return torch.stack(out, dim=1)
-
-
-def _feet_at_height_torch(rebuilt: torch.Tensor, joints: torch.Tensor) -> torch.Tensor:
-    """`rebuilt` shifted up or down, per frame, so its lowest foot joint is as high as `joints`'."""
-    feet = list(FOOT_JOINTS)
-    lift = joints[:, feet, 1].min(dim=1).values - rebuilt[:, feet, 1].min(dim=1).values
-    return rebuilt + torch.stack([torch.zeros_like(lift), lift, torch.zeros_like(lift)], dim=-1)[:, None]
 
 
 def place_on_path_torch(local: torch.Tensor, path: torch.Tensor, pelvis: float | None = None) -> torch.Tensor:
@@ -140,4 +132,4 @@ def hold_pelvis_shape_torch(joints: torch.Tensor, shape: float) -> torch.Tensor:
     moved = side * scale[..., None] + along[..., None] * up - bone  # (T, 2, 3)
     moves = torch.zeros_like(joints)
     moves[:, _LEG_JOINTS] = moved[:, :, None].expand(-1, -1, _LEG_JOINTS.shape[1], -1)  # legs with their hips
-    return _feet_at_height_torch(joints + moves, joints)
+    return joints + moves

@@ -270,24 +270,18 @@ def _rebuild(joints: np.ndarray, pelvis: np.ndarray, lengths: np.ndarray) -> np.
 def with_bone_lengths(joints: np.ndarray, lengths: np.ndarray = BONE_LENGTHS) -> np.ndarray:
     """Rebuild every frame from the pelvis outward with `lengths`, keeping each bone's direction.
 
-    Unlike :func:`rescale_bones` the pelvis trajectory is not scaled: each frame is only shifted up or
-    down so that its lowest foot joint stays at the height it had. A decoder's bones stretch and
-    shrink a little from frame to frame (a leg 9 cm short puts a rigid body's foot 9 cm into the
-    floor); on fixed lengths every frame is a pose of one body. Per frame, so streaming-safe.
+    Unlike :func:`rescale_bones` the pelvis trajectory is kept as it is, height included. A
+    decoder's bones stretch and shrink a little from frame to frame; on fixed lengths every frame
+    is a pose of one body. The feet go where the legs put them (a leg 9 cm short lifts its foot
+    9 cm): the generator's feet and physics stages put them on the floor, where the knees take up
+    the difference. Keeping the lowest foot's height instead moved the whole frame with every
+    jitter of the decoded legs, and a standing body bobbed at 2-3 m/s^2 (a real one: 0.4). Per
+    frame, so streaming-safe.
 
     joints: (T, 22, 3) (or (B, T, 22, 3): B clips); lengths: (22,). Returns float32 of the same shape.
     """
     joints = check_joints(joints, batched=True)
-    return _feet_at_height(_rebuild(joints, joints[..., 0, :], _check_lengths(lengths)), joints)
-
-
-def _feet_at_height(rebuilt: np.ndarray, joints: np.ndarray) -> np.ndarray:
-    """`rebuilt` shifted up or down, per frame, so its lowest foot joint is as high as `joints`'
-    (float32)."""
-    feet = list(FOOT_JOINTS)
-    lift = joints[..., feet, 1].min(axis=-1) - rebuilt[..., feet, 1].min(axis=-1)
-    rebuilt[..., 1] += lift[..., None]
-    return rebuilt.astype(np.float32)
+    return _rebuild(joints, joints[..., 0, :], _check_lengths(lengths)).astype(np.float32)
 
 
 # Each bone as (child, parent), and BONE_SHARE (22, 21): how much of a bone's excess length each
@@ -317,8 +311,8 @@ def fit_bone_lengths(
     by moving its two ends towards or away from each other, half each, shared out over the bones
     that meet at a joint (a Jacobi position projection); after `iterations` rounds the pose is
     rebuilt with :func:`with_bone_lengths`, whose lengths are exact and whose moves are now small,
-    from the pelvis's place in `joints` (a pelvis on a root path stays on it). Per frame, so
-    streaming-safe; the lowest foot joint keeps the height it had, as there.
+    from the pelvis's place in `joints` (a pelvis on a root path stays on it, at its height, as
+    there). Per frame, so streaming-safe.
 
     joints: (T, 22, 3) (or (B, T, 22, 3)); lengths: (22,). Returns float32 of the same shape.
     """
@@ -337,8 +331,8 @@ def fit_bone_lengths(
         excess = bone * (1.0 - target / np.maximum(norm, 1e-9))[..., None]  # what each bone is too long by
         x = x - BONE_SHARE @ excess.reshape(NUM_JOINTS - 1, -1)
     x = np.moveaxis(x.reshape(NUM_JOINTS, *joints.shape[:-2], 3), 0, -2).astype(np.float64)
-    # The pelvis where it was (on the root path), the feet at their height.
-    return _feet_at_height(_rebuild(x, joints[..., 0, :], lengths), joints)
+    # The pelvis where it was: on the root path, at its height.
+    return _rebuild(x, joints[..., 0, :], lengths).astype(np.float32)
 
 
 _HIPS, _LEG_JOINTS = [leg[0] for leg in LEGS], np.array(LEGS)
@@ -371,10 +365,9 @@ def pelvis_shape(joints: np.ndarray) -> np.ndarray:
 def hold_pelvis_shape(joints: np.ndarray, shape: float | np.ndarray) -> np.ndarray:
     """Every frame's pelvis joint `shape` m above the hips' centre along the torso (see
     :func:`pelvis_shape`): each hip turns about the pelvis joint, its bone's length kept, and its
-    leg moves with it; then the frame moves up or down so that its lowest foot joint stays as
-    high as it was. One shape for a clip makes its pelvis a rigid body, as the replay's humanoid
-    has it (a clip that slid 6.5 cm between the two shapes sank a foot 7 cm into the floor where
-    its shape was not the median one). Per frame, so streaming-safe.
+    leg moves with it; the pelvis joint, the torso and the arms stay where they were (the feet
+    move with the hips, as :func:`with_bone_lengths` explains). One shape for a clip makes its
+    pelvis a rigid body, as the replay's humanoid has it. Per frame, so streaming-safe.
 
     joints: (T, 22, 3) (or (B, T, 22, 3)); shape: a number, or one per frame or per clip that
     broadcasts against (T,) (or (B, T)): pass (B, 1) for one per clip. Returns float32.
@@ -393,7 +386,7 @@ def hold_pelvis_shape(joints: np.ndarray, shape: float | np.ndarray) -> np.ndarr
     scale = np.sqrt(length**2 - along**2) / np.maximum(vector_norm(side), 1e-9)
     moved = side * scale[..., None] + along[..., None] * up - bone  # (..., 2, 3)
     out[..., _LEG_JOINTS, :] += moved[..., None, :]  # each leg rigidly with its hip
-    return _feet_at_height(out, joints)
+    return out.astype(np.float32)
 
 
 def floor_height(joints: np.ndarray, percentile: float = 3.0) -> float:

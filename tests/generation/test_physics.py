@@ -19,6 +19,7 @@ from motion_env.generation.physics import (
     MAX_FLIGHT_FRAMES,
     MAX_HOP_FRAMES,
     RELEASE_FADE,
+    SINK_TOLERANCE,
     STANCE_ACCELERATION,
     PhysicsFilter,
     _cap_flights,
@@ -90,6 +91,22 @@ def test_a_floating_body_is_lowered_onto_its_planted_feet(height: float) -> None
     out = apply_physics(joints, np.ones((30, 4)))
     np.testing.assert_allclose(sole_heights(out.astype(np.float64)), 0.0, atol=2e-3)
     np.testing.assert_allclose(out - joints, np.broadcast_to([0.0, -height, 0.0], out.shape), atol=2e-3)
+
+
+def test_a_shallow_sole_dip_is_taken_up_by_the_knee_not_the_body() -> None:
+    # One foot jitters 1.5 cm below the floor every other frame (a decoded leg that straightens
+    # and bends): the body is not raised for each dip, the grounding's knee takes it up.
+    joints = _standing(40)
+    hip, knee, ankle, toe = LEGS[0]
+    joints[1::2, [ankle, toe], 1] -= SINK_TOLERANCE * 0.75
+    out = apply_physics(joints, np.ones((40, 4)))
+    assert np.abs(np.diff(out[:, 0, 1], n=2)).max() < 1e-3
+    assert sole_heights(out.astype(np.float64)).min() > -1e-4
+    # A deeper one, for a frame, raises the body (as fast as a stance can: over a few frames).
+    deep = _standing(40)
+    deep[20, [ankle, toe], 1] -= SINK_TOLERANCE + 0.03
+    raised = (apply_physics(deep, np.ones((40, 4))) - deep)[:, 0, 1]
+    assert raised.max() > 0.008 and np.abs(raised[:14]).max() < 1e-4
 
 
 @pytest.mark.parametrize("planted", [True, False])

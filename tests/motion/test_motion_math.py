@@ -279,16 +279,17 @@ def _stretched_clip() -> tuple[np.ndarray, np.ndarray]:
 
 
 @pytest.mark.parametrize("rebuild", [M.with_bone_lengths, M.fit_bone_lengths])
-def test_bone_length_rebuilds_fix_stretched_bones_and_keep_the_feet_height(rebuild) -> None:
+def test_bone_length_rebuilds_fix_stretched_bones_and_keep_the_pelvis(rebuild) -> None:
     canonical, stretched = _stretched_clip()
     fixed = rebuild(stretched)
     np.testing.assert_allclose(
         M.bone_lengths(fixed)[:, 1:], np.broadcast_to(S.BONE_LENGTHS[1:], (60, 21)), atol=1e-5
     )
-    # Same pelvis XZ (the root path), same lowest foot joint height, frame by frame.
-    np.testing.assert_allclose(fixed[:, 0, [0, 2]], stretched[:, 0, [0, 2]], atol=1e-6)
+    # The same pelvis, height included, frame by frame: the legs' stretch moves the feet, not
+    # the body (a frame moved to keep its lowest foot's height bobbed with the legs' jitter).
+    np.testing.assert_allclose(fixed[:, 0], stretched[:, 0], atol=1e-6)
     feet = list(S.FOOT_JOINTS)
-    np.testing.assert_allclose(fixed[:, feet, 1].min(1), stretched[:, feet, 1].min(1), atol=1e-5)
+    assert np.abs(fixed[:, feet, 1].min(1) - stretched[:, feet, 1].min(1)).max() > 0.01
     # A body already on the lengths is left as it is.
     np.testing.assert_allclose(rebuild(canonical), canonical, atol=1e-5)
     if rebuild is M.with_bone_lengths:  # it keeps every bone's direction
@@ -315,7 +316,7 @@ def test_fitted_bones_do_not_jitter_far_from_the_pelvis() -> None:
         M.fit_bone_lengths(canonical, iterations=-1)
 
 
-def test_held_pelvis_shape_is_one_rigid_pelvis_with_the_legs_and_feet_kept() -> None:
+def test_held_pelvis_shape_is_one_rigid_pelvis_with_the_legs_kept() -> None:
     # A clip whose hips slide along the spine from 3 cm below the pelvis joint to 3 cm above it
     # (the two mocap sources' shapes, mixed by a decoder) gets one shape for every frame.
     clip = _synthetic_clip(seed=4)
@@ -330,13 +331,11 @@ def test_held_pelvis_shape_is_one_rigid_pelvis_with_the_legs_and_feet_kept() -> 
     np.testing.assert_allclose(M.pelvis_shape(held), 0.033, atol=2e-4)
     lengths = M.bone_lengths(sliding)
     np.testing.assert_allclose(M.bone_lengths(held), lengths, atol=1e-5)  # the hips turn, not stretch
-    np.testing.assert_allclose(held[:, 0, [0, 2]], sliding[:, 0, [0, 2]], atol=1e-6)  # the root path
-    feet = list(S.FOOT_JOINTS)
-    np.testing.assert_allclose(held[:, feet, 1].min(1), sliding[:, feet, 1].min(1), atol=1e-5)
-    # The legs move rigidly with their hips; the torso and arms only up or down with the frame.
+    # The legs move rigidly with their hips; the pelvis joint, the torso and the arms stay.
     knee_from_hip = held[:, 4] - held[:, 1]
     np.testing.assert_allclose(knee_from_hip, sliding[:, 4] - sliding[:, 1], atol=1e-5)
-    np.testing.assert_allclose(held[:, 20] - held[:, 0], sliding[:, 20] - sliding[:, 0], atol=1e-5)
+    upper = [j for j in range(S.NUM_JOINTS) if j not in np.array(S.LEGS).ravel()]
+    np.testing.assert_allclose(held[:, upper], sliding[:, upper], atol=1e-6)
     # One shape per clip in a batch; a clip at its shape stays (to a fraction of a millimetre: the
     # torso's axis, taken from the hips, turns a little as they move).
     both = M.hold_pelvis_shape(np.stack([sliding, held]), np.array([[0.033], [0.033]]))
