@@ -97,7 +97,7 @@ def test_a_shallow_sole_dip_is_taken_up_by_the_knee_not_the_body() -> None:
     # One foot jitters 1.5 cm below the floor every other frame (a decoded leg that straightens
     # and bends): the body is not raised for each dip, the grounding's knee takes it up.
     joints = _standing(40)
-    hip, knee, ankle, toe = LEGS[0]
+    _, _, ankle, toe = LEGS[0]
     joints[1::2, [ankle, toe], 1] -= SINK_TOLERANCE * 0.75
     out = apply_physics(joints, np.ones((40, 4)))
     assert np.abs(np.diff(out[:, 0, 1], n=2)).max() < 1e-3
