@@ -57,6 +57,25 @@ def wait_for(page, condition: Callable[[], bool], seconds: float, what: str) -> 
     raise AssertionError(f"timed out after {seconds:g} s waiting for {what}")
 
 
+def walked(studio, xz: np.ndarray) -> str:
+    """What the player did, for a failure message: frames played, where character 0 went and how
+    near it came to `xz`, and where the player thread is (a stall shows as a stack)."""
+    import sys
+    import traceback
+
+    pelvis = studio.session.clip(0).joints[:, 0][:, [0, 2]]
+    near = np.linalg.norm(pelvis - xz, axis=1)
+    k = int(near.argmin())
+    player = studio._thread
+    stack = sys._current_frames().get(player.ident) if player is not None else None
+    where = "".join(traceback.format_stack(stack)[-6:]) if stack is not None else "no player thread"
+    return (
+        f"playing={studio.playing}, {studio.frames_played} frames played; the episode has "
+        f"{len(pelvis)} frames, from {pelvis[0].round(2).tolist()} to {pelvis[-1].round(2).tolist()}, "
+        f"nearest {near[k]:.2f} m at frame {k}; the player thread is at:\n{where}"
+    )
+
+
 def to_pixel(camera, point: np.ndarray, width: int, height: int) -> tuple[float, float]:
     """World point (3,) -> pixel of the tab whose camera this is (three.js: vertical fov)."""
     eye, target = np.asarray(camera.position), np.asarray(camera.look_at)
@@ -185,6 +204,10 @@ def test_caption_and_two_waypoints_through_the_page(studio, chromium, tmp_path) 
     # Pause, so that the camera (which follows the character) holds still while we click.
     page.get_by_role("button", name="Pause").click()
     wait_for(page, lambda: not studio.playing, 10, "the pause")
+    # A new episode: the character back at its start, so that its way to the waypoints does not
+    # depend on how long the page took to load (a slow machine walks it far off before the pause).
+    page.get_by_role("button", name="Reset").click()
+    wait_for(page, lambda: session.frame <= 1, 20, "the reset")
     text_box(page, "Caption").fill("a person jogs")
     page.get_by_role("button", name="Apply caption").click()
     wait_for(page, lambda: session.snapshot().captions[0] == "a person jogs", 20, "the caption to arrive")
@@ -202,9 +225,15 @@ def test_caption_and_two_waypoints_through_the_page(studio, chromium, tmp_path) 
 
     page.get_by_role("button", name="Play").click()
     for xz in route[:, :2]:
-        wait_for(
-            page, lambda xz=xz: session.arrived(0, xz), 60, f"the character to reach {xz.round(2).tolist()}"
-        )
+        try:
+            wait_for(
+                page,
+                lambda xz=xz: session.arrived(0, xz),
+                60,
+                f"the character to reach {xz.round(2).tolist()}",
+            )
+        except AssertionError as error:
+            raise AssertionError(f"{error}; {walked(studio, xz)}") from None
     assert session.snapshot().reached[0]
     assert session.clip(0).meta["captions"].endswith(": a person jogs")
 
