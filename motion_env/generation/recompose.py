@@ -34,6 +34,12 @@ from motion_env.motion.validation import check_joints
 # An untimed waypoint is snapped to only where the controller's path passes it this close (m): one
 # the path has not reached (yet) is left to the controller rather than dragging the path to it.
 SNAP_RADIUS = 0.5
+# A whole clip's last untimed waypoint is where the character stands: when the controller's path
+# comes to rest (under REST_SPEED, m/s, to its end) within STOP_RADIUS (m) of it, the standing
+# body is put on it rather than the point where the path passed it (a jog that turned back to its
+# last waypoint passed it and stood 36 cm beyond).
+REST_SPEED = 0.2
+STOP_RADIUS = 1.0
 
 # ----------------------------------------------------------------------------------------------
 # The body on the path
@@ -322,13 +328,22 @@ def route_anchors(
         waypoints inside the path; untimed ones at their closest approach (searched after the
         previous anchor) when it is within SNAP_RADIUS. The first untimed waypoint the path
         does not reach ends the list (the ones after it are not reached in order either).
+        Without `open_end`, an untimed last waypoint near which the path comes to rest is
+        anchored where it comes to rest (REST_SPEED, STOP_RADIUS), shifted so that the rest of
+        the path stands on it on average.
     """
     last = len(path) - 1
     steered = path if steered is None else steered
     anchors: list[tuple[float, float, float]] = []
     after = 0
-    for x, z, t in route:
-        if np.isnan(t):
+    for n, (x, z, t) in enumerate(route):
+        rest = None if open_end or n < len(route) - 1 or not np.isnan(t) else _rest_frame(steered, after)
+        if rest is not None and np.hypot(*(steered[rest, :2] - (x, z))) <= STOP_RADIUS:
+            # The stance from `rest` on, not its first frame, stands on the waypoint (a standing
+            # pelvis sways a few cm): the anchor is placed so that the stance's mean lands there.
+            x, z = np.array([x, z]) + path[rest, :2] - path[rest:, :2].mean(axis=0)
+            k = rest
+        elif np.isnan(t):
             dist = np.linalg.norm(steered[after:, :2] - (x, z), axis=1)
             k = after + int(np.argmin(dist))
             if dist[k - after] > SNAP_RADIUS or (open_end and k == last):
@@ -342,6 +357,16 @@ def route_anchors(
         anchors.append((float(x), float(z), float(k)))
         after = k
     return np.array(anchors, np.float32).reshape(-1, 3)
+
+
+def _rest_frame(path: np.ndarray, after: int) -> int | None:
+    """The frame after `after` from which `path` stays under REST_SPEED to its end, None when it
+    is still moving at its end or never moved after `after` (nothing to stop from)."""
+    speed = np.linalg.norm(np.diff(path[after:, :2], axis=0), axis=1) * FPS
+    moving = np.flatnonzero(speed >= REST_SPEED)
+    if len(moving) == 0 or moving[-1] == len(speed) - 1:
+        return None
+    return after + int(moving[-1]) + 1
 
 
 def smooth_path(path: np.ndarray, sigma: float) -> np.ndarray:

@@ -138,6 +138,42 @@ def test_a_turned_back_waypoint_is_found_on_the_path_before_smoothing() -> None:
     np.testing.assert_allclose(snapped[30, :2], [0.0, 3.0], atol=1e-5)
 
 
+def _walk_then_stand(stop_z: float, frames: int = 80) -> np.ndarray:
+    """Along +z at 1.5 m/s, slowing to a stand at `stop_z` by frame 50, then standing still."""
+    t = np.arange(frames, dtype=np.float64)
+    s = np.clip(t / 50, 0, 1)
+    z = stop_z * (1 - (1 - s) ** 2)  # decelerates to zero speed at frame 50
+    return np.stack([np.zeros_like(t), z, np.zeros_like(t)], 1).astype(np.float32)
+
+
+def test_a_clip_stands_on_its_last_untimed_waypoint_not_past_it() -> None:
+    # The path passes the waypoint at z = 3.0 and stands 0.36 m beyond it (a jog that brakes
+    # late): the stance, not the passing point, is put on the waypoint.
+    path = _walk_then_stand(3.36)
+    route = np.array([[0.0, 3.0, np.nan]], np.float32)
+    anchors = rc.route_anchors(path, route)
+    assert len(anchors) == 1 and 40 < anchors[0, 2] < 60  # where the path comes to rest
+    snapped = rc.snap_route(path, route)
+    k = int(anchors[0, 2])
+    np.testing.assert_allclose(snapped[k:, :2].mean(axis=0), [0.0, 3.0], atol=1e-4)
+    np.testing.assert_allclose(snapped[-1, :2], [0.0, 3.0], atol=0.005)
+    np.testing.assert_allclose(snapped[0], path[0], atol=1e-6)
+    # Standing short of it (0.7 m: never within SNAP_RADIUS) brings it there too.
+    short = rc.snap_route(_walk_then_stand(2.3), route)
+    np.testing.assert_allclose(short[-1, :2], [0.0, 3.0], atol=0.02)
+    # Farther than STOP_RADIUS: the controller went elsewhere; the path is left alone.
+    far = _walk_then_stand(3.0 - rc.STOP_RADIUS - 0.3)
+    np.testing.assert_array_equal(rc.snap_route(far, route), far)
+    # The stream's open end, a timed last waypoint, a path still moving at its end: as before.
+    passing = int(np.argmin(np.abs(path[:, 1] - 3.0)))
+    np.testing.assert_allclose(rc.route_anchors(path, route, open_end=True), [[0.0, 3.0, passing]])
+    timed = np.array([[0.0, 3.0, 30.0]], np.float32)
+    np.testing.assert_allclose(rc.route_anchors(path, timed), [[0.0, 3.0, 30.0]])
+    moving = path.copy()
+    moving[:, 1] += 0.02 * np.arange(len(path))  # never comes to rest
+    assert rc.route_anchors(moving, route)[0, 2] == np.argmin(np.abs(moving[:, 1] - 3.0))
+
+
 def test_snap_turns_the_heading_with_the_new_direction() -> None:
     n = 80
     straight = np.stack([np.zeros(n), np.arange(n) * 0.06, np.zeros(n)], 1)  # forward along +Z
