@@ -19,7 +19,7 @@ from motion_env.generation.feet import (
     soft_reach,
     two_bone_ik,
 )
-from motion_env.generation.recompose import ARMS, on_bone_lengths
+from motion_env.generation.recompose import ARMS, bend_elbows_one_way, on_bone_lengths
 from motion_env.motion.kinematics import bone_lengths, with_bone_lengths
 from motion_env.motion.skeleton import BONE_LENGTHS, PARENTS, RAW_OFFSETS
 
@@ -254,6 +254,61 @@ def test_a_straight_but_short_decoded_arm_bends_its_elbow_one_way(
     # It bends back (-z for this pose), every frame; noise still wobbles it a few cm, no flip.
     assert np.all(side[:, 2] < -back)
     assert np.linalg.norm(np.diff(rebuilt[:, elbow], axis=0), axis=-1).max() < step
+
+
+def _mirror_elbows(pose: np.ndarray) -> np.ndarray:
+    """`pose` with each elbow mirrored across its shoulder-wrist line (a forearm bent the other way)."""
+    out = pose.copy()
+    for shoulder, elbow, wrist in ARMS:
+        u = (pose[wrist] - pose[shoulder]) / np.linalg.norm(pose[wrist] - pose[shoulder])
+        rel = pose[elbow] - pose[shoulder]
+        out[elbow] = pose[shoulder] + 2 * (rel @ u) * u - rel
+    return out
+
+
+def _turn_arms(pose: np.ndarray, axis: int, degrees: float) -> np.ndarray:
+    """`pose` with both arms turned about their shoulders by `degrees` about world `axis` (0: x)."""
+    c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
+    i, j = [k for k in range(3) if k != axis]
+    out = pose.copy()
+    for shoulder, elbow, wrist in ARMS:
+        rel = out[[elbow, wrist]] - out[shoulder]
+        turned = rel.copy()
+        turned[:, i], turned[:, j] = c * rel[:, i] - s * rel[:, j], s * rel[:, i] + c * rel[:, j]
+        out[[elbow, wrist]] = out[shoulder] + turned
+    return out
+
+
+@pytest.mark.parametrize("swing", [0.0, 60.0, -50.0])  # hanging, swung back, held forward
+def test_an_elbow_bent_backwards_is_mirrored_to_the_side_elbows_flex_to(swing: float) -> None:
+    natural = _turn_arms(_pose(), 0, swing)  # a rotation about the left-right axis keeps the flexion
+    same = natural[None].copy()
+    bend_elbows_one_way(same)
+    np.testing.assert_allclose(same[0], natural, atol=1e-9)
+    backwards = _mirror_elbows(natural)[None]
+    bend_elbows_one_way(backwards)
+    np.testing.assert_allclose(backwards[0], natural, atol=1e-9)  # wrist and bone lengths kept
+
+
+def test_an_arm_held_out_sideways_keeps_its_elbow_and_an_elbow_crossing_its_line_moves_smoothly() -> None:
+    sideways = _mirror_elbows(_turn_arms(_pose(), 2, 85.0))  # the left arm out to the left, level
+    out = sideways[None].copy()
+    bend_elbows_one_way(out)
+    shoulder, elbow, wrist = ARMS[0]
+    np.testing.assert_allclose(out[0, elbow], sideways[elbow], atol=1e-9)
+    # The elbow of a hanging arm passes from 2 cm behind its line to 2 cm in front of it.
+    pose = _pose()
+    n = 41
+    frames = np.repeat(pose[None], n, axis=0)
+    u = (pose[wrist] - pose[shoulder]) / np.linalg.norm(pose[wrist] - pose[shoulder])
+    middle = pose[shoulder] + 0.5 * (pose[wrist] - pose[shoulder])
+    back = np.cross([1.0, 0.0, 0.0], u)
+    frames[:, elbow] = middle + np.linspace(0.02, -0.02, n)[:, None] * back
+    out = frames.copy()
+    bend_elbows_one_way(out)
+    steps = np.linalg.norm(np.diff(out[:, elbow], axis=0), axis=-1)
+    assert steps.max() <= 0.001 + 1e-9  # no jump where it crosses
+    assert (((out[:, elbow] - middle) @ back) >= -1e-9).all()  # behind the line, every frame
 
 
 def _shin_foot(out: np.ndarray, leg: int) -> np.ndarray:
