@@ -162,11 +162,11 @@ ARM_BEND_HINT = 0.01
 # How much of the bend an arm needs but its decoded elbow does not show the bias fills in
 # (two_bone_ik's hint_fill: all of it where the decoded arm shows none, little where it shows most).
 ARM_BEND_FILL = 1.0
-# |sin| of an arm's angle to the chest's left-right axis from which its elbow is kept on the
-# flexing side in full (bend_elbows_one_way; fading out to 0.3).
+# bend_elbows_one_way keeps an elbow on the side it flexes to in full from these on: the arm's
+# |sin| to the chest's left-right axis, and the share of it that points down. The rule fades out
+# to none at 0.3 (an arm held out sideways) and at 0.2 (12° under the horizontal: a raised arm's
+# elbow, as in a wave, passes its line all the time, and the shoulder turns that far).
 ELBOW_SAGITTAL = 0.7
-# ... and its downward share from which it is (fading out to 0.2, 12° under the horizontal): a
-# raised arm's elbow, as in a wave, passes its line all the time and may (the shoulder turns far).
 ELBOW_DOWN = 0.6
 
 
