@@ -11,7 +11,9 @@ from __future__ import annotations
 import importlib.util
 import os
 import shutil
+import sys
 import time
+import traceback
 from collections.abc import Callable
 from pathlib import Path
 
@@ -60,9 +62,6 @@ def wait_for(page, condition: Callable[[], bool], seconds: float, what: str) -> 
 def walked(studio, xz: np.ndarray) -> str:
     """What the player did, for a failure message: frames played, where character 0 went and how
     near it came to `xz`, and where the player thread is (a stall shows as a stack)."""
-    import sys
-    import traceback
-
     pelvis = studio.session.clip(0).joints[:, 0][:, [0, 2]]
     near = np.linalg.norm(pelvis - xz, axis=1)
     k = int(near.argmin())
