@@ -104,19 +104,20 @@ def swing_clearance(speed: np.ndarray, free_frames: np.ndarray, descent: np.ndar
 
 def ground_feet(
     joints: np.ndarray,
-    planted: np.ndarray,
+    down: np.ndarray,
     clearance: np.ndarray | None = None,
     flat_ankle: float | np.ndarray = FLAT_ANKLE_HEIGHT,
     pull: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Planted feet onto the floor, free feet out of it: (N, 22, 3) joints, (N, 2) bool planted
-    (left, right) and (N, 2) lowest sole height of a free foot (default 0; see
-    :func:`swing_clearance`) -> (N, 22, 3).
+    """Feet onto the floor, free feet out of it: (N, 22, 3) joints, (N, 2) bool `down` (left,
+    right: the feet to stand on the floor, as the caller decided; the physics stage stands a
+    planted foot on it when its sole is within :data:`PLANT_REACH`), (N, 2) lowest sole height of a
+    free foot (default 0; see :func:`swing_clearance`) and (N, 2) how far down a free foot is still
+    pulled (default none) -> (N, 22, 3).
 
     A foot moves vertically only (its horizontal place is the feet stage's pin) and rigidly with
-    its ankle; the knee is re-solved (:func:`~motion_env.generation.feet.two_bone_ik`). A planted
-    foot more than :data:`PLANT_REACH` above the floor is left alone, and one its leg reaches only
-    stretched beyond :data:`MAX_STRETCH` stays as low as that reaches.
+    its ankle; the knee is re-solved (:func:`~motion_env.generation.feet.two_bone_ik`). A foot
+    its leg reaches only stretched beyond :data:`MAX_STRETCH` stays as low as that reaches.
     """
     out = np.array(joints, dtype=np.float64)
     sole = sole_heights(out, flat_ankle)  # (N, 2)
@@ -125,11 +126,11 @@ def ground_feet(
     # writes only its own joints, and the IK is per frame).
     legs, frames, lifts = [], [], []
     for leg, (hip, knee, ankle, _) in enumerate(LEGS):
-        down = planted[:, leg] & (sole[:, leg] < PLANT_REACH)
-        lift = np.where(down, -sole[:, leg], np.maximum(low[:, leg] - sole[:, leg], 0.0))
+        on = down[:, leg]
+        lift = np.where(on, -sole[:, leg], np.maximum(low[:, leg] - sole[:, leg], 0.0))
         if pull is not None:  # a foot just let go of the floor: down by what is left of its pull
             lift = np.where(
-                down | (pull[:, leg] <= 0.0), lift, np.maximum(-pull[:, leg], low[:, leg] - sole[:, leg])
+                on | (pull[:, leg] <= 0.0), lift, np.maximum(-pull[:, leg], low[:, leg] - sole[:, leg])
             )
         lift = np.maximum(lift, deepest_reach(out[:, hip], out[:, knee], out[:, ankle]))
         moved = np.nonzero(np.abs(lift) > 1e-6)[0]
@@ -185,13 +186,13 @@ def support_gap(sole: np.ndarray, planted: np.ndarray) -> np.ndarray:
 def place_body(
     joints: np.ndarray,
     heights: np.ndarray,
-    planted: np.ndarray,
+    down: np.ndarray,
     clearance: np.ndarray,
     flat_ankle: np.ndarray,
     pull: np.ndarray | None = None,
 ) -> np.ndarray:
     """The body (n, 22, 3) shifted vertically so that its centre of mass is at `heights` (n,), its
-    feet grounded (:func:`ground_feet`; `planted`, `clearance`: (n, 2), `flat_ankle`: (n,)), no
+    feet grounded (:func:`ground_feet`; `down`, `clearance`, `pull`: (n, 2), `flat_ankle`: (n,)), no
     joint below the floor."""
     shift = heights - centre_of_mass(joints)[:, 1]
     out = np.array(joints, dtype=np.float64)
@@ -200,7 +201,7 @@ def place_body(
         moved = joints[todo].copy()
         moved[..., 1] += shift[todo, None]
         out[todo] = ground_feet(
-            moved, planted[todo], clearance[todo], flat_ankle[todo], None if pull is None else pull[todo]
+            moved, down[todo], clearance[todo], flat_ankle[todo], None if pull is None else pull[todo]
         )
         error = heights[todo] - centre_of_mass(out[todo])[:, 1]
         off = np.abs(error) >= _PLACE_TOLERANCE

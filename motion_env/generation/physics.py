@@ -79,6 +79,11 @@ MAX_HOP_FRAMES = 8
 # the pull down it had, each frame, instead of rising by it at once (chosen on val: climbs' pops 56
 # -> 31 %, walks unchanged; 0.9 leaves a lifted foot 1-2 cm low for a second).
 RELEASE_FADE = 0.7
+# A contact that ends with its foot pulled down by no more than this (m) lets it go at once: a
+# toe-off's foot is nearly on the floor. Fading every toe-off's pull kept walks' swing feet low
+# (test, seeds 0-3: skating 0.87 -> 0.89x real, a sidestep more with a pop); a foot held down
+# farther (the body raised above a foot that hovered while flagged) fades, as one still flagged does.
+RELEASE_AT_ONCE = 0.02
 # Frames of the usual flat-foot ankle height (ground.FLAT_ANKLE_HEIGHT) the learnt one starts from
 # (PhysicsFilter._flat_ankle): learnt from a stream's first token alone (a greeting's, both feet
 # flat in its 4 frames: 5.1 cm against 9.7 later), the soles were put 4-6 cm too high and the
@@ -181,12 +186,12 @@ class PhysicsFilter:
         planted, clearance = self._settle(rows, flagged, planted, clearance)
         planted = _lifting_off(planted)
         heights = self._plan_rows(rows, soles, com, flagged, flight, lowest, still)
-        pull = self._release(rows, soles + (heights - com)[..., None], planted)
+        down, pull = self._release(rows, soles + (heights - com)[..., None], planted)
         # The legs' re-solve is the costly part: every row's frames at once.
         out = place_body(
             frames,
             heights.ravel(),
-            planted.reshape(-1, 2),
+            down.reshape(-1, 2),
             clearance.reshape(-1, 2),
             np.repeat(flat_ankle, n),
             pull.reshape(-1, 2),
@@ -195,22 +200,28 @@ class PhysicsFilter:
         self.past[rows, -last:] = centre_of_mass(out[:, -last:])[..., 1]
         return out.astype(np.float32)
 
-    def _release(self, rows: np.ndarray, soles: np.ndarray, planted: np.ndarray) -> np.ndarray:
-        """(R, n, 2) how far down each foot of characters `rows` is still pulled after the floor
-        lets it go: a planted foot whose sole, with the planned heights (`soles`: the decoded soles
-        moved by the plan's shift, an estimate of the placed body's), is under PLANT_REACH is put
-        on the floor; one still flagged that rises past it was pulled down by up to that much the
-        frame before, and would jump up by it at once (a hop on flagged feet: a streamed jump's
-        knee at 72 m/s^2): the pull fades by RELEASE_FADE a frame instead. A contact that ends lets
-        its foot go as before (a toe-off: the foot is on the floor, nothing to fade)."""
+    def _release(
+        self, rows: np.ndarray, soles: np.ndarray, planted: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Which feet of characters `rows` stand on the floor in new frames, and how far down the
+        others are still pulled: (R, n, 2) bool and (R, n, 2) m. A planted foot stands on the floor
+        when its sole, with the planned heights (`soles`: the decoded soles moved by the plan's
+        shift, an estimate of the placed body's), is under PLANT_REACH. The grounding takes this
+        decision as it is: it decided again on the placed body, whose sole can be a few millimetres
+        higher than the estimate, and a foot flagged throughout then rose 5 cm for that one frame
+        (a jump's knee at 64-71 m/s^2, half of the test jumps' pops). A foot the floor lets go of
+        (one still flagged that rises past PLANT_REACH, or a contact that ends while the foot was
+        pulled down by more than RELEASE_AT_ONCE) would jump up by the whole pull at once (a hop on
+        flagged feet: a streamed jump's knee at 72 m/s^2): the pull fades by RELEASE_FADE a frame
+        instead. A toe-off whose foot was nearly on the floor lets it go at once."""
+        down = planted & (soles < PLANT_REACH)
         out = np.zeros(soles.shape)
         last = self.pull[rows]
         for t in range(soles.shape[1]):
-            down = planted[:, t] & (soles[:, t] < PLANT_REACH)
-            out[:, t] = np.where(down | ~planted[:, t], 0.0, RELEASE_FADE * last)
-            last = np.where(down, np.maximum(soles[:, t], 0.0), out[:, t])
+            fade = np.where(planted[:, t] | (last > RELEASE_AT_ONCE), RELEASE_FADE * last, 0.0)
+            out[:, t] = last = np.where(down[:, t], np.maximum(soles[:, t], 0.0), fade)
         self.pull[rows] = last
-        return out
+        return down, np.where(down, 0.0, out)
 
     def _flat_ankle(self, rows: np.ndarray, joints: np.ndarray, flags: np.ndarray) -> np.ndarray:
         """(R,) flat-foot ankle height of characters `rows`, learnt from their frames so far and
