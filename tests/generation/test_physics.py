@@ -59,6 +59,18 @@ def _bones(joints: np.ndarray) -> np.ndarray:
     return np.linalg.norm(joints[:, 1:] - joints[:, list(PARENTS[1:])], axis=-1)
 
 
+def _left_foot_raised(rise: np.ndarray) -> np.ndarray:
+    """A standing body (:func:`_standing`, one frame per entry of `rise`) with its left foot raised
+    by `rise` (m), the knee re-solved: (T, 22, 3) float64."""
+    joints = _standing(len(rise)).astype(np.float64)
+    hip, knee, ankle, toe = LEGS[0]
+    goal = joints[:, ankle] + np.asarray(rise)[:, None] * [0.0, 1.0, 0.0]
+    new_knee, new_ankle = two_bone_ik(joints[:, hip], joints[:, knee], joints[:, ankle], goal)
+    joints[:, toe] += new_ankle - joints[:, ankle]
+    joints[:, knee], joints[:, ankle] = new_knee, new_ankle
+    return joints
+
+
 def _jump(frames: int = 60, take_off: int = 20, landing: int = 32, peak: float = 0.3) -> tuple:
     """A standing clip whose body rises and falls along a triangle (no free fall) between
     `take_off` and `landing`, flagged in the air there: (T, 22, 3) joints, (T, 4) contacts."""
@@ -179,13 +191,7 @@ def test_a_flagged_foot_let_go_of_the_floor_rises_gradually() -> None:
     # onto the floor up to PLANT_REACH, then let go. It rose by the whole pull at once (a 6 cm
     # step; a streamed jump's knee at 72 m/s^2); the pull now fades by RELEASE_FADE a frame.
     frames = 40
-    joints = _standing(frames).astype(np.float64)
-    hip, knee, ankle, toe = LEGS[0]
-    rise = 0.015 * np.clip(np.arange(frames) - 10, 0, 8)
-    goal = joints[:, ankle] + rise[:, None] * [0.0, 1.0, 0.0]
-    new_knee, new_ankle = two_bone_ik(joints[:, hip], joints[:, knee], joints[:, ankle], goal)
-    joints[:, toe] += new_ankle - joints[:, ankle]
-    joints[:, knee], joints[:, ankle] = new_knee, new_ankle
+    joints = _left_foot_raised(0.015 * np.clip(np.arange(frames) - 10, 0, 8))
     flags = np.ones((frames, 4), np.float32)
     for run in (apply_physics, _streamed):
         left = sole_heights(run(joints.astype(np.float32), flags).astype(np.float64))[:, 0]
@@ -222,14 +228,9 @@ def test_a_foot_the_plan_stands_on_the_floor_is_stood_on_it() -> None:
     # that body, found the sole over the reach on the higher frames and left the foot 5 cm up for
     # them (a jump's knee at 64-71 m/s^2). One decision, made on the plan, stands it on the floor.
     frames = 30
-    joints = _standing(frames).astype(np.float64)
-    hip, knee, ankle, toe = LEGS[0]
     rise = np.full(frames, 0.045)
     rise[::3] += 0.003
-    goal = joints[:, ankle] + rise[:, None] * [0.0, 1.0, 0.0]
-    new_knee, new_ankle = two_bone_ik(joints[:, hip], joints[:, knee], joints[:, ankle], goal)
-    joints[:, toe] += new_ankle - joints[:, ankle]
-    joints[:, knee], joints[:, ankle] = new_knee, new_ankle
+    joints = _left_foot_raised(rise)
     flags = np.ones((frames, 4), np.float32)
     for run in (apply_physics, _streamed):
         soles = sole_heights(run(joints.astype(np.float32), flags).astype(np.float64))
