@@ -9,7 +9,8 @@ learning-rate schedule and the checkpoints are :mod:`motion_env.training.loop`'s
 Fine-tuning the decoder alone (``init`` = a trained VQ-VAE, ``freeze_encoder``): the encoder and
 the codebook stay as they are, so every clip keeps its tokens and a body GPT trained on them stays
 valid, while extra losses on the differences of the decoded joint positions (``vel_weight``,
-``acc_weight``, ``jerk_weight``) teach the decoder to stop rippling at the token rate;
+``acc_weight``, ``jerk_weight``; on the joints ``smooth_joints`` names, the legs' share set by
+``leg_weight``) teach the decoder to stop rippling at the token rate;
 ``ripple_weight`` aims at that ripple alone (:func:`token_ripple`), and ``read_weight`` puts the
 decoder's capacity on the channels the generator builds its body from (:data:`READ_CHANNELS`).
 ``context`` decodes each window after the frames before it (:func:`context_windows`): the
@@ -55,6 +56,7 @@ class VQVAETrainConfig(TrainConfig):
     ripple_weight: NonNegativeFloat = 0.0  # L1 loss on the token-periodic part of the acceleration error
     height_acc_weight: NonNegativeFloat = 0.0  # L1 loss on the second differences of the root height
     smooth_joints: str = "all"  # joints those losses apply to: "all", or "upper" (spine, head, arms)
+    leg_weight: NonNegativeFloat = 1.0  # with "all": those losses' weight on the legs against the rest
     read_weight: PositiveFloat = 1.0  # reconstruction weight of the channels the body is read from
     context: NonNegativeInt = 0  # frames before each window decoded as its history, not scored (decoder only)
 
@@ -64,6 +66,12 @@ class VQVAETrainConfig(TrainConfig):
             raise ValueError(
                 f"VQVAETrainConfig.smooth_joints must be one of {tuple(SMOOTH_JOINTS)}, "
                 f"got {self.smooth_joints!r}"
+            )
+        if self.leg_weight != 1.0 and self.smooth_joints != "all":
+            raise ValueError(
+                f"VQVAETrainConfig.leg_weight weighs the legs' difference losses, which only "
+                f"smooth_joints='all' has; got leg_weight={self.leg_weight!r} with "
+                f"smooth_joints={self.smooth_joints!r}"
             )
         if self.init is not None and not (isinstance(self.init, str) and self.init.strip()):
             raise ValueError(f"VQVAETrainConfig.init must be a checkpoint path or None, got {self.init!r}")
@@ -86,6 +94,8 @@ SMOOTH_JOINTS = {
     "all": tuple(range(1, NUM_JOINTS)),
     "upper": (3, 6, 9, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21),
 }
+# Hips, knees, ankles and toes: "all" but "upper" (``leg_weight``).
+LEG_JOINTS = tuple(sorted(set(SMOOTH_JOINTS["all"]) - set(SMOOTH_JOINTS["upper"])))
 
 
 # The channels the generator builds its body from (:func:`motion_env.motion.features.features_to_joints`:
@@ -179,6 +189,10 @@ def derivative_losses(
         [(j - 1) * 3 + c for j in SMOOTH_JOINTS[config.smooth_joints] for c in range(3)]
     )
     pred, true = recon[..., channels], target[..., channels]
+    # Each channel's share of a term: the legs' scaled by leg_weight (1: a plain mean).
+    legs = np.isin(channels, RIC.start + np.array([(j - 1) * 3 + c for j in LEG_JOINTS for c in range(3)]))
+    share = torch.as_tensor(np.where(legs, config.leg_weight, 1.0), dtype=recon.dtype, device=recon.device)
+    share = share / share.mean()
     errors: dict[int, torch.Tensor] = {}  # the error of each order of frame differences, made once
 
     def error(order: int) -> torch.Tensor:
@@ -190,12 +204,12 @@ def derivative_losses(
     for order, name, weight in ((1, "vel_l1", config.vel_weight), (2, "acc_l1", config.acc_weight),
                                 (3, "jerk_l1", config.jerk_weight)):  # fmt: skip
         if weight > 0:
-            terms[name] = error(order).abs().mean()
+            terms[name] = (error(order).abs() * share).mean()
             total = total + weight * terms[name]
     if config.ripple_weight > 0:
         # error(2)[:, k] is centred on frame k + 1: dropping the first rate - 1 puts a token
         # boundary (frame rate) at phase 0.
-        terms["ripple_l1"] = token_ripple(error(2)[:, rate - 1 :], rate).abs().mean()
+        terms["ripple_l1"] = (token_ripple(error(2)[:, rate - 1 :], rate).abs() * share).mean()
         total = total + config.ripple_weight * terms["ripple_l1"]
     if config.height_acc_weight > 0:
         # The root height is not among the RIC channels: without this its decoded quantisation

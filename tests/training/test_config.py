@@ -74,8 +74,8 @@ def test_defaults_are_the_trainers_defaults() -> None:
         "seed": 0, "device": "cpu", "resume": True, "log_every": 50, "save_every": 250, "eval_every": 0,
         "max_minutes": math.inf, "progress": True, "steps": 3000, "batch_size": 64, "lr": 4e-4, "window": 64,
         "init": None, "freeze_encoder": False, "vel_weight": 0.0, "acc_weight": 0.0, "jerk_weight": 0.0,
-        "ripple_weight": 0.0, "height_acc_weight": 0.0, "smooth_joints": "all", "read_weight": 1.0,
-        "context": 0,
+        "ripple_weight": 0.0, "height_acc_weight": 0.0, "smooth_joints": "all", "leg_weight": 1.0,
+        "read_weight": 1.0, "context": 0,
     }  # fmt: skip
     assert GPTTrainConfig().to_dict() == {
         "seed": 0, "device": "cpu", "resume": True, "log_every": 50, "save_every": 100, "eval_every": 0,
@@ -176,8 +176,13 @@ def test_every_field_is_an_option(model: str, tmp_path: Path, monkeypatch: pytes
     argv = ["train", model, "--data", str(tmp_path), "--out", str(tmp_path / "m.pt"), "--vqvae", "v.pt"]
     argv = argv if model == "gpt" else argv[:-2]
     expected = {}
+    # The legs' weight applies to smooth_joints "all" only, whose other value is "upper": it is
+    # checked on its own below.
+    apart = {"leg_weight"}
     for f in fields(cls):
         flag = "--" + f.name.replace("_", "-")
+        if f.name in apart:
+            continue
         if isinstance(f.default, bool):
             argv.append(flag if not f.default else "--no-" + flag[2:])
             expected[f.name] = not f.default
@@ -205,7 +210,11 @@ def test_every_field_is_an_option(model: str, tmp_path: Path, monkeypatch: pytes
             expected[f.name] = value
     assert main(argv) == 0
     assert calls[0][-1] == cls(**expected)
-    assert all(getattr(calls[0][-1], f.name) != f.default for f in fields(cls))
+    assert all(getattr(calls[0][-1], f.name) != f.default for f in fields(cls) if f.name not in apart)
+    if model == "vqvae":
+        calls.clear()
+        assert main([*argv[:6], "--leg-weight", "0.3"]) == 0
+        assert calls[0][-1].leg_weight == 0.3
 
 
 def test_bad_values_on_the_command_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -216,6 +225,8 @@ def test_bad_values_on_the_command_line(tmp_path: Path, capsys: pytest.CaptureFi
     assert "device 'gpu0' is not a torch device" in capsys.readouterr().err
     assert main(["train", "gpt", *base, "--text-drop", "2"]) == 2
     assert "text_drop must be in [0, 1], got 2.0" in capsys.readouterr().err
+    assert main(["train", "vqvae", *base, "--smooth-joints", "upper", "--leg-weight", "0.5"]) == 2
+    assert "leg_weight=0.5 with smooth_joints='upper'" in capsys.readouterr().err
     for argv, message in [
         (["vqvae", *base, "--steps", "many"], "argument --steps: invalid int value: 'many'"),
         (["gpt", *base, "--window", "16"], "unrecognized arguments: --window 16"),  # gpt has no window

@@ -231,3 +231,20 @@ def test_context_is_checked_and_trains_the_decoder(tiny_dataset: Path, tmp_path:
     after = load_checkpoint(tmp_path / "ctx.pt", "vqvae", VQVAEConfig, VQVAE)[0].state_dict()
     assert all(torch.equal(before[k], after[k]) for k in before if k.startswith("encoder."))
     assert any(not torch.equal(before[k], after[k]) for k in before if k.startswith("decoder."))
+
+
+def test_leg_weight_scales_the_legs_share_of_the_difference_losses() -> None:
+    # A decoded jitter on the left knee (joint 4) alone, and one on the left wrist (joint 20).
+    target = torch.zeros(1, 48, 263)
+    knee, wrist = target.clone(), target.clone()
+    knee[:, ::2, 4 + (4 - 1) * 3] += 0.02
+    wrist[:, ::2, 4 + (20 - 1) * 3] += 0.02
+
+    def acc(decoded: torch.Tensor, leg_weight: float) -> float:
+        config = VQVAETrainConfig(acc_weight=1.0, leg_weight=leg_weight)
+        return float(derivative_losses(decoded, target, config)["acc_l1"])
+
+    assert acc(knee, 0.0) == 0.0 < acc(knee, 0.3) < acc(knee, 1.0) == pytest.approx(acc(wrist, 1.0))
+    assert acc(wrist, 0.3) > acc(wrist, 1.0)  # the rest's share grows as the legs' shrinks
+    with pytest.raises(ValueError, match="leg_weight"):
+        VQVAETrainConfig(smooth_joints="upper", leg_weight=0.5)
