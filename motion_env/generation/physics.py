@@ -207,9 +207,9 @@ class PhysicsFilter:
         others are still pulled: (R, n, 2) bool and (R, n, 2) m. A planted foot stands on the floor
         when its sole, with the planned heights (`soles`: the decoded soles moved by the plan's
         shift, an estimate of the placed body's), is under PLANT_REACH. The grounding takes this
-        decision as it is: it decided again on the placed body, whose sole can be a few millimetres
-        higher than the estimate, and a foot flagged throughout then rose 5 cm for that one frame
-        (a jump's knee at 64-71 m/s^2, half of the test jumps' pops). A foot the floor lets go of
+        decision as it is (deciding again on the placed body, whose sole can be a few millimetres
+        higher than the estimate, it left a foot flagged throughout 5 cm up for such a frame: a
+        jump's knee at 64-71 m/s^2, half of the test jumps' pops). A foot the floor lets go of
         (one still flagged that rises past PLANT_REACH, or a contact that ends while the foot was
         pulled down by more than RELEASE_AT_ONCE) would jump up by the whole pull at once (a hop on
         flagged feet: a streamed jump's knee at 72 m/s^2): the pull fades by RELEASE_FADE a frame
