@@ -185,12 +185,11 @@ def derivative_losses(
     # normalised channels are the joints' differences in one scale. They are far below 1, where
     # the smooth L1 of the model's own velocity loss is a tiny quadratic: L1 keeps a pull on
     # the small token-rate ripple.
-    channels = RIC.start + np.array(
-        [(j - 1) * 3 + c for j in SMOOTH_JOINTS[config.smooth_joints] for c in range(3)]
-    )
+    joints = np.array(SMOOTH_JOINTS[config.smooth_joints])
+    channels = RIC.start + ((joints[:, None] - 1) * 3 + np.arange(3)).ravel()
     pred, true = recon[..., channels], target[..., channels]
     # Each channel's share of a term: the legs' scaled by leg_weight (1: a plain mean).
-    legs = np.isin(channels, RIC.start + np.array([(j - 1) * 3 + c for j in LEG_JOINTS for c in range(3)]))
+    legs = np.repeat(np.isin(joints, LEG_JOINTS), 3)
     share = torch.as_tensor(np.where(legs, config.leg_weight, 1.0), dtype=recon.dtype, device=recon.device)
     share = share / share.mean()
     errors: dict[int, torch.Tensor] = {}  # the error of each order of frame differences, made once
