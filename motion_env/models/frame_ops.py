@@ -9,6 +9,10 @@ torch's per-operation cost (a few microseconds) is most of the frame and numpy's
 (the roll-out of a 200-frame clip, 216 frames: 131 -> 69 ms on the 2-core development CPU, one
 thread). The two agree to float32 rounding (``tests/models/test_frame_ops.py``); the numpy side
 holds the weights transposed, the layout a one-row product reads fastest.
+
+A numpy step runs numpy's BLAS on as many threads as torch is set to (:func:`match_blas_threads`):
+its products are a few rows wide, and on a busy 2-core machine a second BLAS thread waiting for a
+core made a 4-row product 5x slower (46 -> 230 us) and one env's step p99 8x longer.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 from scipy.special import erf, expit
+from threadpoolctl import threadpool_limits
 
 from motion_env.motion.skeleton import FPS
 
@@ -30,6 +35,19 @@ Array = Any  # a torch.Tensor or a numpy array, as the ops object in hand makes 
 # What a model's numpy switch may be set to (PathController.frame_backend, TokenGPT.step_backend,
 # DecoderStream.backend): "auto" (numpy for a few rows where it can run, else torch), "torch", "numpy".
 BACKENDS = ("auto", "torch", "numpy")
+_blas_threads: int | None = None  # what match_blas_threads last set numpy's BLAS to
+
+
+def match_blas_threads() -> None:
+    """Limit numpy's BLAS to ``torch.get_num_threads()`` threads, so that the one thread count a
+    caller sets (``torch.set_num_threads``, the commands' ``--threads``) holds for the numpy steps
+    too. Set again only when torch's count changed (a limit costs about 0.4 ms; this runs at every
+    step)."""
+    global _blas_threads
+    threads = torch.get_num_threads()
+    if threads != _blas_threads:
+        threadpool_limits(threads, user_api="blas")
+        _blas_threads = threads
 
 
 def numpy_chosen(
@@ -45,7 +63,10 @@ def numpy_chosen(
         raise ValueError(f"{owner}='numpy' runs {needs} only ({state()})")
     if setting == "torch" or not numpy_ok:
         return False
-    return setting == "numpy" or rows <= max_rows
+    chosen = setting == "numpy" or rows <= max_rows
+    if chosen:
+        match_blas_threads()
+    return chosen
 
 
 def gradients_state() -> str:

@@ -10,7 +10,7 @@ import torch
 import torch.nn.functional as F
 
 from motion_env.models.controller import NUMPY_MAX_BATCH, ControllerConfig, PathController
-from motion_env.models.frame_ops import TORCH, NumpyOps
+from motion_env.models.frame_ops import TORCH, NumpyOps, numpy_chosen
 from motion_env.models.waypoint_features import from_heading_frame_torch, to_heading_frame_torch
 
 NP = NumpyOps()
@@ -91,6 +91,29 @@ def test_a_roll_out_with_gradients_or_many_rows_runs_on_torch() -> None:
         assert model._ops(NUMPY_MAX_BATCH + 1) is TORCH  # many rows: torch's matrix products win
         model.frame_backend = "numpy"
         assert model._ops(NUMPY_MAX_BATCH + 1) is model._numpy
+
+
+def _blas_threads() -> list[int]:
+    from threadpoolctl import threadpool_info
+
+    return [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
+
+
+def test_a_numpy_step_runs_blas_on_torchs_thread_count() -> None:
+    """A busy 2-core machine made numpy's few-row products 5x slower on a second BLAS thread."""
+    if not _blas_threads():
+        pytest.skip("numpy reports no BLAS library to threadpoolctl")
+    threads = torch.get_num_threads()
+    try:
+        for wanted in (2, 1):
+            torch.set_num_threads(wanted)
+            assert numpy_chosen("test", "auto", 1, 4, True, "", str)
+            assert set(_blas_threads()) == {wanted}
+        torch.set_num_threads(2)
+        assert not numpy_chosen("test", "torch", 1, 4, True, "", str)  # torch's steps leave BLAS alone
+        assert set(_blas_threads()) == {1}
+    finally:
+        torch.set_num_threads(threads)
 
 
 def test_a_backend_that_cannot_run_is_named() -> None:
