@@ -176,7 +176,7 @@ def test_every_field_is_an_option(model: str, tmp_path: Path, monkeypatch: pytes
     argv = ["train", model, "--data", str(tmp_path), "--out", str(tmp_path / "m.pt"), "--vqvae", "v.pt"]
     argv = argv if model == "gpt" else argv[:-2]
     expected = {}
-    # The legs' weight applies to smooth_joints "all" only, whose other value is "upper": it is
+    # The legs' weight applies to smooth_joints "all" only, the value below is "upper": it is
     # checked on its own below.
     apart = {"leg_weight"}
     for f in fields(cls):

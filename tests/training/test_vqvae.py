@@ -248,3 +248,19 @@ def test_leg_weight_scales_the_legs_share_of_the_difference_losses() -> None:
     assert acc(wrist, 0.3) > acc(wrist, 1.0)  # the rest's share grows as the legs' shrinks
     with pytest.raises(ValueError, match="leg_weight"):
         VQVAETrainConfig(smooth_joints="upper", leg_weight=0.5)
+
+
+def test_the_feet_sets_smooth_the_ankles_and_toes_but_not_the_knees() -> None:
+    target = torch.zeros(1, 48, 263)
+
+    def acc(joint: int, smooth_joints: str) -> float:
+        decoded = target.clone()
+        decoded[:, ::2, 4 + (joint - 1) * 3] += 0.02  # a jitter on one joint's x
+        config = VQVAETrainConfig(acc_weight=1.0, smooth_joints=smooth_joints)
+        return float(derivative_losses(decoded, target, config)["acc_l1"])
+
+    ankle, toe, knee, wrist = 7, 10, 4, 20
+    assert acc(ankle, "upper") == acc(toe, "upper") == acc(knee, "upper") == 0.0
+    assert acc(ankle, "upper+feet") > 0 and acc(toe, "upper+feet") > 0 and acc(knee, "upper+feet") == 0.0
+    assert acc(toe, "upper+toes") > 0 and acc(ankle, "upper+toes") == 0.0
+    assert acc(wrist, "upper+feet") > 0
