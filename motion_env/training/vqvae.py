@@ -59,6 +59,7 @@ class VQVAETrainConfig(TrainConfig):
     leg_weight: NonNegativeFloat = 1.0  # with "all": those losses' weight on the legs against the rest
     read_weight: PositiveFloat = 1.0  # reconstruction weight of the channels the body is read from
     context: NonNegativeInt = 0  # frames before each window decoded as its history, not scored (decoder only)
+    start_weight: PositiveFloat = 1.0  # difference losses' weight on a window's first START_FRAMES frames
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -72,6 +73,12 @@ class VQVAETrainConfig(TrainConfig):
                 f"VQVAETrainConfig.leg_weight weighs the legs' difference losses, which only "
                 f"smooth_joints='all' has; got leg_weight={self.leg_weight!r} with "
                 f"smooth_joints={self.smooth_joints!r}"
+            )
+        if self.start_weight != 1.0 and self.context:
+            raise ValueError(
+                f"VQVAETrainConfig.start_weight weighs a window's first frames, decoded from an empty "
+                f"history, which a window with context has not; got start_weight={self.start_weight!r} "
+                f"with context={self.context!r}"
             )
         if self.init is not None and not (isinstance(self.init, str) and self.init.strip()):
             raise ValueError(f"VQVAETrainConfig.init must be a checkpoint path or None, got {self.init!r}")
@@ -101,6 +108,9 @@ SMOOTH_JOINTS = {
 }
 # Hips, knees, ankles and toes: "all" but "upper" (``leg_weight``).
 LEG_JOINTS = tuple(sorted(set(SMOOTH_JOINTS["all"]) - set(SMOOTH_JOINTS["upper"])))
+# Frames at a window's start, decoded from an empty history as a generated clip's first frames are
+# (where most pops were), that ``start_weight`` weighs in the difference losses: two tokens.
+START_FRAMES = 8
 
 
 # The channels the generator builds its body from (:func:`motion_env.motion.features.features_to_joints`:
@@ -204,11 +214,14 @@ def derivative_losses(
             errors[order] = torch.diff(pred, n=order, dim=1) - torch.diff(true, n=order, dim=1)
         return errors[order]
 
+    # Each frame's share: a window's first START_FRAMES scaled by start_weight (1: a plain mean).
+    steps = torch.ones(recon.shape[1], dtype=recon.dtype, device=recon.device)
+    steps[:START_FRAMES] = config.start_weight
     terms, total = {}, recon.new_zeros(())
     for order, name, weight in ((1, "vel_l1", config.vel_weight), (2, "acc_l1", config.acc_weight),
                                 (3, "jerk_l1", config.jerk_weight)):  # fmt: skip
         if weight > 0:
-            terms[name] = (error(order).abs() * share).mean()
+            terms[name] = (error(order).abs() * share * steps[order:, None]).mean()
             total = total + weight * terms[name]
     if config.ripple_weight > 0:
         # error(2)[:, k] is centred on frame k + 1: dropping the first rate - 1 puts a token

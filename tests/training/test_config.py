@@ -75,7 +75,7 @@ def test_defaults_are_the_trainers_defaults() -> None:
         "max_minutes": math.inf, "progress": True, "steps": 3000, "batch_size": 64, "lr": 4e-4, "window": 64,
         "init": None, "freeze_encoder": False, "vel_weight": 0.0, "acc_weight": 0.0, "jerk_weight": 0.0,
         "ripple_weight": 0.0, "height_acc_weight": 0.0, "smooth_joints": "all", "leg_weight": 1.0,
-        "read_weight": 1.0, "context": 0,
+        "read_weight": 1.0, "context": 0, "start_weight": 1.0,
     }  # fmt: skip
     assert GPTTrainConfig().to_dict() == {
         "seed": 0, "device": "cpu", "resume": True, "log_every": 50, "save_every": 100, "eval_every": 0,
@@ -176,9 +176,9 @@ def test_every_field_is_an_option(model: str, tmp_path: Path, monkeypatch: pytes
     argv = ["train", model, "--data", str(tmp_path), "--out", str(tmp_path / "m.pt"), "--vqvae", "v.pt"]
     argv = argv if model == "gpt" else argv[:-2]
     expected = {}
-    # The legs' weight applies to smooth_joints "all" only, the value below is "upper": it is
-    # checked on its own below.
-    apart = {"leg_weight"}
+    # The legs' weight applies to smooth_joints "all" only, the value below is "upper", and the
+    # start's weight to windows without context: each is checked on its own below.
+    apart = {"leg_weight", "start_weight"}
     for f in fields(cls):
         flag = "--" + f.name.replace("_", "-")
         if f.name in apart:
@@ -215,6 +215,9 @@ def test_every_field_is_an_option(model: str, tmp_path: Path, monkeypatch: pytes
         calls.clear()
         assert main([*argv[:6], "--leg-weight", "0.3"]) == 0
         assert calls[0][-1].leg_weight == 0.3
+        calls.clear()
+        assert main([*argv[:6], "--start-weight", "4"]) == 0
+        assert calls[0][-1].start_weight == 4.0
 
 
 def test_bad_values_on_the_command_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -227,6 +230,8 @@ def test_bad_values_on_the_command_line(tmp_path: Path, capsys: pytest.CaptureFi
     assert "text_drop must be in [0, 1], got 2.0" in capsys.readouterr().err
     assert main(["train", "vqvae", *base, "--smooth-joints", "upper", "--leg-weight", "0.5"]) == 2
     assert "leg_weight=0.5 with smooth_joints='upper'" in capsys.readouterr().err
+    assert main(["train", "vqvae", *base, "--start-weight", "4", "--context", "8", "--freeze-encoder"]) == 2
+    assert "start_weight=4.0 with context=8" in capsys.readouterr().err
     for argv, message in [
         (["vqvae", *base, "--steps", "many"], "argument --steps: invalid int value: 'many'"),
         (["gpt", *base, "--window", "16"], "unrecognized arguments: --window 16"),  # gpt has no window

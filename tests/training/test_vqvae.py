@@ -264,3 +264,20 @@ def test_the_feet_sets_smooth_the_ankles_and_toes_but_not_the_knees() -> None:
     assert acc(ankle, "upper+feet") > 0 and acc(toe, "upper+feet") > 0 and acc(knee, "upper+feet") == 0.0
     assert acc(toe, "upper+toes") > 0 and acc(ankle, "upper+toes") == 0.0
     assert acc(wrist, "upper+feet") > 0
+
+
+def test_start_weight_scales_the_first_frames_share_of_the_difference_losses() -> None:
+    target = torch.zeros(1, 48, 263)
+    start, later = target.clone(), target.clone()
+    start[:, 2, 4 + (20 - 1) * 3] += 0.02  # a wrist's jolt in the window's first frames
+    later[:, 30, 4 + (20 - 1) * 3] += 0.02  # and the same jolt later on
+
+    def acc(decoded: torch.Tensor, start_weight: float) -> float:
+        config = VQVAETrainConfig(acc_weight=1.0, start_weight=start_weight)
+        return float(derivative_losses(decoded, target, config)["acc_l1"])
+
+    assert acc(start, 1.0) == pytest.approx(acc(later, 1.0))
+    assert acc(start, 4.0) == pytest.approx(4 * acc(start, 1.0))
+    assert acc(later, 4.0) == acc(later, 1.0)
+    with pytest.raises(ValueError, match="start_weight"):
+        VQVAETrainConfig(start_weight=2.0, context=8, freeze_encoder=True, init="x.pt")
