@@ -10,7 +10,8 @@ Fine-tuning the decoder alone (``init`` = a trained VQ-VAE, ``freeze_encoder``):
 the codebook stay as they are, so every clip keeps its tokens and a body GPT trained on them stays
 valid, while extra losses on the differences of the decoded joint positions (``vel_weight``,
 ``acc_weight``, ``jerk_weight``; on the joints ``smooth_joints`` names, the legs' share set by
-``leg_weight``) teach the decoder to stop rippling at the token rate;
+``leg_weight``, a window's first frames' by ``start_weight``) teach the decoder to stop rippling at
+the token rate;
 ``ripple_weight`` aims at that ripple alone (:func:`token_ripple`), and ``read_weight`` puts the
 decoder's capacity on the channels the generator builds its body from (:data:`READ_CHANNELS`).
 ``context`` decodes each window after the frames before it (:func:`context_windows`): the
