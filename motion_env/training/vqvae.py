@@ -57,7 +57,7 @@ class VQVAETrainConfig(TrainConfig):
     ripple_weight: NonNegativeFloat = 0.0  # L1 loss on the token-periodic part of the acceleration error
     height_acc_weight: NonNegativeFloat = 0.0  # L1 loss on the second differences of the root height
     smooth_joints: str = "all"  # joints those losses apply to: "all", "upper", "upper+feet", "upper+toes"
-    leg_weight: NonNegativeFloat = 1.0  # with "all": those losses' weight on the legs against the rest
+    leg_weight: NonNegativeFloat = 1.0  # those losses' weight on the legs (of smooth_joints) against the rest
     read_weight: PositiveFloat = 1.0  # reconstruction weight of the channels the body is read from
     context: NonNegativeInt = 0  # frames before each window decoded as its history, not scored (decoder only)
     start_weight: PositiveFloat = 1.0  # difference losses' weight on a window's first START_FRAMES frames
@@ -69,11 +69,11 @@ class VQVAETrainConfig(TrainConfig):
                 f"VQVAETrainConfig.smooth_joints must be one of {tuple(SMOOTH_JOINTS)}, "
                 f"got {self.smooth_joints!r}"
             )
-        if self.leg_weight != 1.0 and self.smooth_joints != "all":
+        if self.leg_weight != 1.0 and not set(SMOOTH_JOINTS[self.smooth_joints]) & set(LEG_JOINTS):
             raise ValueError(
-                f"VQVAETrainConfig.leg_weight weighs the legs' difference losses, which only "
-                f"smooth_joints='all' has; got leg_weight={self.leg_weight!r} with "
-                f"smooth_joints={self.smooth_joints!r}"
+                f"VQVAETrainConfig.leg_weight weighs the legs' difference losses, which "
+                f"smooth_joints={self.smooth_joints!r} has none of; got leg_weight={self.leg_weight!r} "
+                f"with smooth_joints={self.smooth_joints!r}"
             )
         if self.start_weight != 1.0 and self.context:
             raise ValueError(
@@ -101,14 +101,16 @@ class VQVAETrainConfig(TrainConfig):
 # (shipped since session 29) adds the ankles and toes, whose toe-off pops are the decoder's (val
 # backward walks 44 -> 12 % of clips with a pop) without the whole legs' larger Fréchet distance;
 # "upper+toes" the toes alone (measured: the same pops, runs' skating 0.93 -> 1.10x on test).
+_UPPER = (3, 6, 9, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21)  # spine, neck, head, collars, arms
+_ANKLES, _TOES = (7, 8), (10, 11)
 SMOOTH_JOINTS = {
     "all": tuple(range(1, NUM_JOINTS)),
-    "upper": (3, 6, 9, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21),
-    "upper+toes": (3, 6, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21),
-    "upper+feet": (3, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21),
+    "upper": _UPPER,
+    "upper+toes": tuple(sorted(_UPPER + _TOES)),
+    "upper+feet": tuple(sorted(_UPPER + _ANKLES + _TOES)),
 }
-# Hips, knees, ankles and toes: "all" but "upper" (``leg_weight``).
-LEG_JOINTS = tuple(sorted(set(SMOOTH_JOINTS["all"]) - set(SMOOTH_JOINTS["upper"])))
+# Hips, knees, ankles and toes: "all" but "upper" (``leg_weight`` weighs those a set has).
+LEG_JOINTS = tuple(sorted(set(SMOOTH_JOINTS["all"]) - set(_UPPER)))
 # Frames at a window's start, decoded from an empty history as a generated clip's first frames are
 # (where most pops were), that ``start_weight`` weighs in the difference losses: two tokens.
 START_FRAMES = 8
@@ -208,6 +210,9 @@ def derivative_losses(
     legs = np.repeat(np.isin(joints, LEG_JOINTS), 3)
     share = torch.as_tensor(np.where(legs, config.leg_weight, 1.0), dtype=recon.dtype, device=recon.device)
     share = share / share.mean()
+    # Each frame's share too: a window's first START_FRAMES scaled by start_weight (1: a plain mean).
+    steps = torch.ones(recon.shape[1], 1, dtype=recon.dtype, device=recon.device)
+    steps[:START_FRAMES] = config.start_weight
     errors: dict[int, torch.Tensor] = {}  # the error of each order of frame differences, made once
 
     def error(order: int) -> torch.Tensor:
@@ -215,14 +220,11 @@ def derivative_losses(
             errors[order] = torch.diff(pred, n=order, dim=1) - torch.diff(true, n=order, dim=1)
         return errors[order]
 
-    # Each frame's share: a window's first START_FRAMES scaled by start_weight (1: a plain mean).
-    steps = torch.ones(recon.shape[1], dtype=recon.dtype, device=recon.device)
-    steps[:START_FRAMES] = config.start_weight
     terms, total = {}, recon.new_zeros(())
     for order, name, weight in ((1, "vel_l1", config.vel_weight), (2, "acc_l1", config.acc_weight),
                                 (3, "jerk_l1", config.jerk_weight)):  # fmt: skip
         if weight > 0:
-            terms[name] = (error(order).abs() * share * steps[order:, None]).mean()
+            terms[name] = (error(order).abs() * share * steps[order:]).mean()
             total = total + weight * terms[name]
     if config.ripple_weight > 0:
         # error(2)[:, k] is centred on frame k + 1: dropping the first rate - 1 puts a token

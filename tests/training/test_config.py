@@ -176,8 +176,8 @@ def test_every_field_is_an_option(model: str, tmp_path: Path, monkeypatch: pytes
     argv = ["train", model, "--data", str(tmp_path), "--out", str(tmp_path / "m.pt"), "--vqvae", "v.pt"]
     argv = argv if model == "gpt" else argv[:-2]
     expected = {}
-    # The legs' weight applies to smooth_joints "all" only, the value below is "upper", and the
-    # start's weight to windows without context: each is checked on its own below.
+    # The legs' weight applies to smooth_joints with leg joints, not to the value below ("upper"),
+    # and the start's weight to windows without context: each is checked on its own below.
     apart = {"leg_weight", "start_weight"}
     for f in fields(cls):
         flag = "--" + f.name.replace("_", "-")

@@ -233,17 +233,21 @@ def test_context_is_checked_and_trains_the_decoder(tiny_dataset: Path, tmp_path:
     assert any(not torch.equal(before[k], after[k]) for k in before if k.startswith("decoder."))
 
 
+def _acc_l1(joint: int, frames: slice | int, **settings: object) -> float:
+    """The acceleration loss of a 2-cm jolt on `joint`'s x at `frames` of a still 48-frame window."""
+    target = torch.zeros(1, 48, 263)
+    decoded = target.clone()
+    decoded[:, frames, 4 + (joint - 1) * 3] += 0.02
+    config = VQVAETrainConfig(acc_weight=1.0, **settings)
+    return float(derivative_losses(decoded, target, config)["acc_l1"])
+
+
 def test_leg_weight_scales_the_legs_share_of_the_difference_losses() -> None:
     # A decoded jitter on the left knee (joint 4) alone, and one on the left wrist (joint 20).
-    target = torch.zeros(1, 48, 263)
-    knee, wrist = target.clone(), target.clone()
-    knee[:, ::2, 4 + (4 - 1) * 3] += 0.02
-    wrist[:, ::2, 4 + (20 - 1) * 3] += 0.02
+    def acc(joint: int, leg_weight: float) -> float:
+        return _acc_l1(joint, slice(None, None, 2), leg_weight=leg_weight)
 
-    def acc(decoded: torch.Tensor, leg_weight: float) -> float:
-        config = VQVAETrainConfig(acc_weight=1.0, leg_weight=leg_weight)
-        return float(derivative_losses(decoded, target, config)["acc_l1"])
-
+    knee, wrist = 4, 20
     assert acc(knee, 0.0) == 0.0 < acc(knee, 0.3) < acc(knee, 1.0) == pytest.approx(acc(wrist, 1.0))
     assert acc(wrist, 0.3) > acc(wrist, 1.0)  # the rest's share grows as the legs' shrinks
     with pytest.raises(ValueError, match="leg_weight"):
@@ -251,13 +255,8 @@ def test_leg_weight_scales_the_legs_share_of_the_difference_losses() -> None:
 
 
 def test_the_feet_sets_smooth_the_ankles_and_toes_but_not_the_knees() -> None:
-    target = torch.zeros(1, 48, 263)
-
     def acc(joint: int, smooth_joints: str) -> float:
-        decoded = target.clone()
-        decoded[:, ::2, 4 + (joint - 1) * 3] += 0.02  # a jitter on one joint's x
-        config = VQVAETrainConfig(acc_weight=1.0, smooth_joints=smooth_joints)
-        return float(derivative_losses(decoded, target, config)["acc_l1"])
+        return _acc_l1(joint, slice(None, None, 2), smooth_joints=smooth_joints)
 
     ankle, toe, knee, wrist = 7, 10, 4, 20
     assert acc(ankle, "upper") == acc(toe, "upper") == acc(knee, "upper") == 0.0
@@ -267,15 +266,11 @@ def test_the_feet_sets_smooth_the_ankles_and_toes_but_not_the_knees() -> None:
 
 
 def test_start_weight_scales_the_first_frames_share_of_the_difference_losses() -> None:
-    target = torch.zeros(1, 48, 263)
-    start, later = target.clone(), target.clone()
-    start[:, 2, 4 + (20 - 1) * 3] += 0.02  # a wrist's jolt in the window's first frames
-    later[:, 30, 4 + (20 - 1) * 3] += 0.02  # and the same jolt later on
+    # A wrist's jolt in the window's first frames (frame 2), and the same jolt later on (frame 30).
+    def acc(frame: int, start_weight: float) -> float:
+        return _acc_l1(20, frame, start_weight=start_weight)
 
-    def acc(decoded: torch.Tensor, start_weight: float) -> float:
-        config = VQVAETrainConfig(acc_weight=1.0, start_weight=start_weight)
-        return float(derivative_losses(decoded, target, config)["acc_l1"])
-
+    start, later = 2, 30
     assert acc(start, 1.0) == pytest.approx(acc(later, 1.0))
     assert acc(start, 4.0) == pytest.approx(4 * acc(start, 1.0))
     assert acc(later, 4.0) == acc(later, 1.0)
