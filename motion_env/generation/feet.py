@@ -293,55 +293,54 @@ class FootPinner:
         # What each frame asks of each leg, before the frame loop: the ankle's flag wins; the toe
         # alone is pinned while the heel lifts; the pinned joint's place.
         kinds = np.where(flags[..., 0::2], 0, np.where(flags[..., 1::2], 1, -1))  # (R, n, legs)
+        held = kinds >= 0
         both = np.stack([joints[:, :, ankles], joints[:, :, toes]], axis=3)[..., [0, 2]]  # (R, n, legs, 2, 2)
-        shown = np.where((kinds == 0)[..., None], both[..., 0, :], both[..., 1, :])
+        is_ankle = (kinds == 0)[..., None]
+        shown = np.where(is_ankle, both[..., 0, :], both[..., 1, :])  # (R, n, legs, 2)
+        # A pin is fresh where its joint was not held the frame before (a pin lasts while its kind
+        # does), so the frame loop only carries one pin a leg. A fresh pin glides on with the foot's
+        # last step: that step, capped, is known before the loop too.
+        pins = self.pins[rows]  # (R, legs, 2 kinds, 2)
+        first = np.take_along_axis(pins, np.maximum(kinds[:, 0], 0)[..., None, None], axis=2)[:, :, 0]
+        fresh = held.copy()
+        fresh[:, 0] &= np.isnan(first[..., 0])
+        fresh[:, 1:] &= kinds[:, 1:] != kinds[:, :-1]
+        before = np.concatenate([self.shown[rows][:, None], both[:, :-1]], axis=1)  # (R, n, legs, 2, 2)
+        step = FOOT_GLIDE * np.nan_to_num(shown - np.where(is_ankle, before[..., 0, :], before[..., 1, :]))
+        size = vector_norm(step)
+        fresh_glide = step * (np.minimum(size, FOOT_GLIDE_STEP) / np.maximum(size, 1e-12))[..., None]
+        # The carried state, as the frames leave it.
+        pin = np.where(held[:, 0, :, None], first, np.nan)  # (R, legs, 2)
+        glide, offset = self.glide[rows], self.offset[rows]
+        released, since = self.released[rows], self.since[rows]
         offsets = np.zeros(kinds.shape + (2,))
         for t in range(joints.shape[1]):
-            kind = kinds[:, t]  # (R, legs)
-            pins = self.pins[rows]  # (R, legs, 2 kinds, 2)
-            pins[:, :, 0][kind != 0] = np.nan
-            pins[:, :, 1][kind != 1] = np.nan
-            free = kind < 0
-            since = self.since[rows] + free
-            offset = self.released[rows] * release_fade(since)[..., None]
-            held_row, held_leg = np.nonzero(~free)
-            if len(held_row):
-                k = kind[held_row, held_leg]
-                xz = shown[held_row, t, held_leg]
-                pin = pins[held_row, held_leg, k]
-                fresh = np.isnan(pin[:, 0])
-                pin[fresh] = xz[fresh] + self.offset[rows[held_row], held_leg][fresh]  # where it is shown now
-                # A new pin glides on with the foot's last step, FOOT_GLIDE of it and less each frame.
-                glide = self.glide[rows[held_row], held_leg]
-                pin += glide * ~fresh[:, None]
-                glide *= FOOT_GLIDE
-                if fresh.any():  # (set here: a free leg's glide is never read)
-                    last = both[:, t - 1] if t else self.shown[rows]  # the frame before: (R, legs, 2, 2)
-                    at = held_row[fresh], held_leg[fresh], k[fresh]
-                    step = FOOT_GLIDE * np.nan_to_num(xz[fresh] - last[at])
-                    size = vector_norm(step)
-                    glide[fresh] = (
-                        step * (np.minimum(size, FOOT_GLIDE_STEP) / np.maximum(size, 1e-12))[:, None]
-                    )
-                self.glide[rows[held_row], held_leg] = glide
-                moved = pin - xz
-                dist = vector_norm(moved)
-                creep = np.where(fresh, 0.0, np.minimum(FOOT_CREEP_RATE * dist, FOOT_CREEP))
-                moved *= (1.0 - creep / np.maximum(dist, 1e-12))[:, None]
-                norm = vector_norm(moved)
-                far = norm > FOOT_MAX_OFFSET
-                moved[far] *= (FOOT_MAX_OFFSET / norm[far])[:, None]
-                for leg in range(len(LEGS)):
-                    cut = np.nonzero(check[held_row, t, held_leg] & (held_leg == leg))[0]
-                    if len(cut):
-                        moved[cut] *= ankle_room(joints[held_row[cut], t], leg, moved[cut])[:, None]
-                pins[held_row, held_leg, k] = xz + moved  # the pin slides with the foot where it is cut
-                offset[held_row, held_leg] = moved
-                self.released[rows[held_row], held_leg] = moved
-                since[held_row, held_leg] = 0
-            self.pins[rows] = pins
-            self.since[rows] = since
-            self.offset[rows] = offsets[:, t] = offset
+            h, f, xz = held[:, t], fresh[:, t], shown[:, t]  # (R, legs), (R, legs), (R, legs, 2)
+            since = np.where(h, 0, since + 1)
+            # A held pin glides on by the glide it has (which then halves), a fresh one starts
+            # where its foot is shown now, with the correction the leg had.
+            target = np.where(f[..., None], xz + offset, pin + glide)
+            held_glide = np.where(f[..., None], fresh_glide[:, t], glide * FOOT_GLIDE)
+            glide = np.where(h[..., None], held_glide, glide)  # (a free leg's glide is never read)
+            moved = target - xz
+            dist = vector_norm(moved)
+            creep = np.where(f, 0.0, np.minimum(FOOT_CREEP_RATE * dist, FOOT_CREEP))
+            moved = moved * (1.0 - creep / np.maximum(dist, 1e-12))[..., None]
+            norm = vector_norm(moved)
+            far = np.where(norm > FOOT_MAX_OFFSET, FOOT_MAX_OFFSET / np.maximum(norm, 1e-12), 1.0)
+            moved = moved * far[..., None]
+            cut = h & check[:, t]
+            for leg in np.nonzero(cut.any(axis=0))[0]:
+                at = np.nonzero(cut[:, leg])[0]
+                moved[at, leg] *= ankle_room(joints[at, t], leg, moved[at, leg])[:, None]
+            pin = np.where(h[..., None], xz + moved, np.nan)  # the pin slides with the foot where it is cut
+            released = np.where(h[..., None], moved, released)
+            offset = offsets[:, t] = np.where(h[..., None], moved, released * release_fade(since)[..., None])
+        last = kinds[:, -1]  # the pin of the last frame's kind is kept, the other is none
+        for kind in (0, 1):
+            pins[:, :, kind] = np.where((last == kind)[..., None], pin, np.nan)
+        self.pins[rows], self.glide[rows], self.offset[rows] = pins, glide, offset
+        self.released[rows], self.since[rows] = released, since
         self.shown[rows] = both[:, -1]
         return offsets
 

@@ -312,10 +312,9 @@ class PhysicsFilter:
         for t in range(gap.shape[1]):
             g = gap[:, t]
             followed = np.where(np.isnan(last), g, last + FLOAT_RATE * (g - last))
-            last = np.where(np.isnan(g), last, followed)
-            out[:, t] = np.where(np.isnan(last), 0.0, last)
+            last = out[:, t] = np.where(np.isnan(g), last, followed)
         self.floating[rows] = last
-        return out
+        return np.where(np.isnan(out), 0.0, out)
 
     def _steps(
         self, rows: np.ndarray, joints: np.ndarray, soles: np.ndarray
@@ -364,8 +363,10 @@ class PhysicsFilter:
         descent = np.where(stretch > SWING_STRAIGHT, np.inf, descent)
         speed = steps.reshape(steps.shape[:2] + (2, 2)).max(axis=-1) * FPS  # (R, n, 2): ankle or toe
         free = np.zeros_like(speed)
+        last = self.free[rows]
         for t in range(joints.shape[1]):
-            self.free[rows] = free[:, t] = np.where(planted[:, t], 0.0, np.minimum(self.free[rows] + 1, 100))
+            last = free[:, t] = np.where(planted[:, t], 0.0, np.minimum(last + 1, 100))
+        self.free[rows] = last
         return swing_clearance(speed, free, descent)
 
     def _settle(
@@ -378,13 +379,14 @@ class PhysicsFilter:
         planted, clearance = planted.copy(), clearance.copy()
         if not self.lift[rows].any() and not (flagged & ~planted).any():
             return planted, clearance  # nothing dragged: nothing to let down
+        lift = self.lift[rows]
         for t in range(planted.shape[1]):
-            lift = self.lift[rows]
             dragged = flagged[:, t] & ~planted[:, t]
             settling = planted[:, t] & (lift > 0.0)
             clearance[:, t] = np.where(settling, np.maximum(lift - SWING_RISE, 0.0), clearance[:, t])
             planted[:, t] &= ~(settling & (clearance[:, t] > 0.0))
-            self.lift[rows] = np.where(dragged | settling, clearance[:, t], 0.0)
+            lift = np.where(dragged | settling, clearance[:, t], 0.0)
+        self.lift[rows] = lift
         return planted, clearance
 
     def _remember(self, rows: np.ndarray, heights: np.ndarray, raw: np.ndarray, flight: np.ndarray) -> None:
