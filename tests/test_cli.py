@@ -10,7 +10,6 @@ import pytest
 
 from motion_env.args import parse_waypoints
 from motion_env.cli import main
-from motion_env.evaluation.bench import REFERENCE_CALIBRATION_S
 from motion_env.motion.types import Motion
 
 _ENCODERS: dict[str, object] = {}
@@ -97,13 +96,13 @@ def test_bench_runs_and_writes_json(tmp_path, capsys) -> None:
     assert env["steps"] == 8 and env["p99"] >= env["median"] > 0
     learner = results["env_step_ms_learner"]
     assert learner["agent"] == "learner" and learner["steps"] == 8
-    # every speed also as its quiet-machine equivalent, scaled by the calibration beside it
-    clip = results["clip_latency_ms"]
-    ratio = REFERENCE_CALIBRATION_S * 1000 / clip["calibration_ms"]
-    assert clip["quiet"]["median"] == pytest.approx(clip["median"] * ratio)
-    stream = results["stream"][0]
-    ratio = REFERENCE_CALIBRATION_S * 1000 / stream["calibration_ms"]
-    assert stream["quiet"]["frames_per_s"] * ratio == pytest.approx(stream["frames_per_s"])
+    # every speed also as its quiet-machine equivalent (each part scaled by the calibrations beside
+    # it: tests/evaluation/test_bench_cpu_time.py)
+    for row, key in ((results["clip_latency_ms"], "median"), (results["stream"][0], "step_ms_median")):
+        assert row["quiet"][key] > 0 and row["calibration_ms"] > 0
+    clip, stream = results["clip_latency_ms"], results["stream"][0]
+    assert set(clip["quiet"]) == {"median", "p90", "min", "mean"}
+    assert set(stream["quiet"]) == {"frames_per_s", "step_ms_median", "step_ms_p99", "first_step_ms"}
     assert results["env_step_ms_learner_4"]["agent"] == "learner_4"
     assert [(r["agent"], r["num_envs"]) for r in results["vector_env"]] == [
         ("route", 1), ("route", 3), ("learner", 1), ("learner", 3), ("learner_4", 1), ("learner_4", 3)

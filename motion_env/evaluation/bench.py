@@ -24,11 +24,14 @@ What is measured (the definitions of ``docs/metrics.md``):
   over ``vector_steps`` steps after a warm-up, in the same two cases.
 
 Speed on a shared machine: the machine this runs on may be busy, and its speed drifts by 2x within
-a day. Beside every measurement the bench times a fixed calibration workload (:func:`calibration_s`:
-a GRU cell (128 -> 384) stepped 200 times plus 50 blocks of 32x192 @ 192x768 @ 768x192 matmuls at
-batch 1, one thread; about :data:`REFERENCE_CALIBRATION_S` on the project's 2-core machine when it
-is quiet) and reports each number also as its quiet-machine equivalent: times x reference /
-calibration, rates x calibration / reference. Before/after comparisons use the equivalents.
+a day. Between the parts of every measurement (each run of the clip, the controller and the GPT;
+:data:`PARTS` chunks of the stream's, the env's and the vector env's steps) the bench times a fixed
+calibration workload (:func:`calibration_s`: a GRU cell (128 -> 384) stepped 200 times plus 50
+blocks of 32x192 @ 192x768 @ 768x192 matmuls at batch 1, one thread; about
+:data:`REFERENCE_CALIBRATION_S` on the project's 2-core machine when it is quiet) and reports each
+number also as its quiet-machine equivalent: each part's times x reference / the mean of the
+calibrations on its two sides (rates the other way), summarised as the raw ones are
+(:class:`Calibration`). Before/after comparisons use the equivalents.
 
 On a machine with more runnable threads than cores, wall time also counts the time this process
 waits for a core, which the calibration beside it can only partly correct. So every measurement
@@ -41,6 +44,7 @@ This is the project's one bench; ``motion-env bench`` runs it and prints a table
 
 from __future__ import annotations
 
+import inspect
 import os
 import platform
 import time
@@ -56,6 +60,8 @@ BENCH_WAYPOINTS = np.array([[0.0, 2.5, 50], [2.0, 4.5, 110], [4.0, 4.5, 170]], n
 
 REFERENCE_CALIBRATION_S = 0.032
 """Seconds :func:`calibration_s` takes on the project's 2-core CPU machine when it is quiet (30-34 ms)."""
+PARTS = 5
+"""Parts a measurement of many steps is timed in, a calibration after each (:class:`Calibration`)."""
 # Result keys that are rates (scaled the other way from times) and keys that are not speeds.
 _RATES = ("frames_per_s", "steps_per_s")
 _NOT_SPEED = (
@@ -103,11 +109,55 @@ def _scaled(result: dict[str, Any], scale: float) -> dict[str, float]:
     return quiet
 
 
+class Calibration:
+    """The calibration workload timed between the parts of one measurement (its runs, or chunks
+    of its steps): each part is scaled to a quiet machine by the mean of the calibrations on its
+    two sides, the nearest estimate of the machine's speed while that part ran. One pair of
+    calibrations around a whole measurement let a burst of load on either side scale every part
+    by it: eight repeats of the clip's ten runs on the loaded 2-core machine gave quiet-machine
+    equivalents of 150-201 ms (coefficient of variation 10.6 %) that way, 143-175 ms (5.5 %) with a
+    calibration between runs."""
+
+    def __init__(self) -> None:
+        self._times = [calibration_times()]  # (wall, CPU) seconds, one more than the parts
+
+    def part_done(self) -> None:
+        """A part of the measurement has been timed: the calibration after it."""
+        self._times.append(calibration_times())
+
+    def factors(self) -> tuple[np.ndarray, np.ndarray]:
+        """(wall, CPU) quiet-machine factors of each part (reference / calibration): times are
+        multiplied by them, rates divided."""
+        t = np.asarray(self._times if len(self._times) > 1 else self._times * 2)
+        beside = (t[1:] + t[:-1]) / 2
+        return REFERENCE_CALIBRATION_S / beside[:, 0], REFERENCE_CALIBRATION_S / beside[:, 1]
+
+    def summaries(
+        self, summary: Any, wall: list[float], cpu: list[float], part: list[int] | np.ndarray
+    ) -> dict[str, Any]:
+        """`summary` (per-sample times -> a dict of speeds) of the measurement's wall and CPU
+        samples, each of part `part[i]`, as quiet-machine equivalents: ``quiet``, ``quiet_cpu``,
+        and the calibrations' means (``calibration_ms``, ``calibration_cpu_ms``)."""
+        wall_f, cpu_f = self.factors()
+        at = np.asarray(part, dtype=np.int64)
+        t = np.asarray(self._times)
+        return {
+            "calibration_ms": float(t[:, 0].mean() * 1000.0),
+            "calibration_cpu_ms": float(t[:, 1].mean() * 1000.0),
+            "quiet": summary(np.asarray(wall) * wall_f[at]),
+            "quiet_cpu": summary(np.asarray(cpu) * cpu_f[at]),
+        }
+
+
 def calibrated(measure: Any, *args: Any, **kwargs: Any) -> dict[str, Any]:
     """Run ``measure(*args, **kwargs)`` (a dict of times in ms and rates, with the same in CPU time
-    under ``cpu``) between two calibrations; the dict gains ``calibration_ms`` and
+    under ``cpu``) with the calibration workload beside it; the dict gains ``calibration_ms`` and
     ``calibration_cpu_ms``, ``quiet`` (each speed as its quiet-machine equivalent) and
-    ``quiet_cpu`` (the same from CPU times)."""
+    ``quiet_cpu`` (the same from CPU times). A measure that takes a ``calibration`` keyword is
+    given a :class:`Calibration` and times one between its parts (this module's measures);
+    another is scaled by the calibrations before and after it."""
+    if "calibration" in inspect.signature(measure).parameters:
+        return measure(*args, calibration=Calibration(), **kwargs)
     w0, c0 = calibration_times()
     result = measure(*args, **kwargs)
     w1, c1 = calibration_times()
@@ -116,6 +166,22 @@ def calibrated(measure: Any, *args: Any, **kwargs: Any) -> dict[str, Any]:
     out["quiet"] = _scaled(result, REFERENCE_CALIBRATION_S / calib)
     if "cpu" in result:
         out["quiet_cpu"] = _scaled(result["cpu"], REFERENCE_CALIBRATION_S / calib_cpu)
+    return out
+
+
+def _with_quiet(
+    result: dict[str, Any],
+    summary: Any,
+    wall: list[float],
+    cpu: list[float],
+    part: list[int] | np.ndarray,
+    calibration: Calibration | None,
+) -> dict[str, Any]:
+    """`result` with its speeds (``summary`` of the wall samples) and their CPU-time twins under
+    ``cpu``, and with a calibration their quiet-machine equivalents."""
+    out = {**result, **summary(np.asarray(wall)), "cpu": summary(np.asarray(cpu))}
+    if calibration is not None:
+        out.update(calibration.summaries(summary, wall, cpu, part))
     return out
 
 
@@ -128,9 +194,15 @@ def _percentiles(values: list[float], qs: tuple[int, ...]) -> dict[str, float]:
     return out
 
 
-def time_clip(generator: Any, runs: int = 10, num_frames: int = 200, warmup: int = 2) -> dict[str, float]:
+def time_clip(
+    generator: Any,
+    runs: int = 10,
+    num_frames: int = 200,
+    warmup: int = 2,
+    calibration: Calibration | None = None,
+) -> dict[str, Any]:
     """Latency (ms) of one clip with caption and waypoints, batch 1: median, p90, min, mean (and
-    the same in CPU time under ``cpu``)."""
+    the same in CPU time under ``cpu``); with a `calibration`, one between runs."""
     if runs < 1:
         raise ValueError(f"runs must be >= 1, got {runs}")
     for i in range(warmup):
@@ -142,15 +214,33 @@ def time_clip(generator: Any, runs: int = 10, num_frames: int = 200, warmup: int
         w1, c1 = _clock()
         times.append((w1 - w0) * 1000.0)
         cpu.append((c1 - c0) * 1000.0)
-    return {**_percentiles(times, (90,)), "runs": runs, "frames": num_frames, "cpu": _percentiles(cpu, (90,))}
+        if calibration is not None:
+            calibration.part_done()
+    return _with_quiet(
+        {"runs": runs, "frames": num_frames},
+        lambda v: _percentiles(v, (90,)),
+        times,
+        cpu,
+        np.arange(runs),
+        calibration,
+    )
 
 
 def _per_unit(
-    model: Any, attr: str, backend: str, call: Any, units: int, runs: int, key: str, batch: int
+    model: Any,
+    attr: str,
+    backend: str,
+    call: Any,
+    units: int,
+    runs: int,
+    key: str,
+    batch: int,
+    calibration: Calibration | None = None,
 ) -> dict:
     """Milliseconds per unit (frame, token) of `runs` calls ``call(run)`` (run = 1..runs) of `units`
     units each, after ``call(0)`` (a warm-up), with ``model.<attr>`` (a backend switch) set to
-    `backend` and put back after; the median under `key`, wall and CPU time."""
+    `backend` and put back after; the median under `key`, wall and CPU time (with a
+    `calibration`, one after each call)."""
     saved = getattr(model, attr)
     setattr(model, attr, backend)
     times, cpu = [], []
@@ -162,13 +252,28 @@ def _per_unit(
             if run:
                 times.append((w1 - w0) * 1000.0 / units)
                 cpu.append((c1 - c0) * 1000.0 / units)
+            if calibration is not None:
+                calibration.part_done()
     finally:
         setattr(model, attr, saved)
-    return {"batch": batch, "backend": backend, key: float(np.median(times)),
-            "cpu": {key: float(np.median(cpu))}}  # fmt: skip
+    return _with_quiet(
+        {"batch": batch, "backend": backend},
+        lambda v: {key: float(np.median(v))},
+        times,
+        cpu,
+        np.arange(1, runs + 1),  # part 0 is the warm-up
+        calibration,
+    )
 
 
-def time_controller(generator: Any, batch: int, backend: str, frames: int = 200, runs: int = 5) -> dict:
+def time_controller(
+    generator: Any,
+    batch: int,
+    backend: str,
+    frames: int = 200,
+    runs: int = 5,
+    calibration: Calibration | None = None,
+) -> dict:
     """Milliseconds per frame of the path controller's roll-out alone for `batch` characters on
     frame backend `backend` ("numpy" or "torch", :attr:`PathController.frame_backend`): the median
     of `runs` roll-outs of `frames` frames after one warm-up."""
@@ -178,11 +283,18 @@ def time_controller(generator: Any, batch: int, backend: str, frames: int = 200,
     with torch.no_grad():
         return _per_unit(
             controller, "frame_backend", backend, lambda run: controller.run(state, frames), frames, runs,
-            "ms_per_frame", batch,
+            "ms_per_frame", batch, calibration,
         )  # fmt: skip
 
 
-def time_gpt(generator: Any, batch: int, backend: str, tokens: int = 50, runs: int = 5) -> dict:
+def time_gpt(
+    generator: Any,
+    batch: int,
+    backend: str,
+    tokens: int = 50,
+    runs: int = 5,
+    calibration: Calibration | None = None,
+) -> dict:
     """Milliseconds per token of the body GPT's sampling alone for `batch` characters on step
     backend `backend` ("numpy" or "torch", :attr:`TokenGPT.step_backend`): the median of `runs`
     generations of `tokens` tokens (the bench caption, path features of a steady walk) after one
@@ -196,7 +308,7 @@ def time_gpt(generator: Any, batch: int, backend: str, tokens: int = 50, runs: i
         gens = [torch.Generator().manual_seed(run * batch + b) for b in range(batch)]
         gpt.generate(text, path, tokens, gens)
 
-    return _per_unit(gpt, "step_backend", backend, generate, tokens, runs, "ms_per_token", batch)
+    return _per_unit(gpt, "step_backend", backend, generate, tokens, runs, "ms_per_token", batch, calibration)
 
 
 def _routes(batch: int) -> list[np.ndarray]:
@@ -211,32 +323,48 @@ def _routes(batch: int) -> list[np.ndarray]:
     return routes
 
 
-def time_stream(generator: Any, batch: int, frames: int = 100) -> dict[str, float]:
-    """Streaming throughput of `batch` characters: frames/s (all characters) and ms per step()."""
+def _part_of(step: int, steps: int) -> int:
+    """The part (0 .. PARTS - 1) that step `step` of `steps` falls in (:class:`Calibration`)."""
+    return step * min(PARTS, steps) // steps
+
+
+def _end_of_part(step: int, steps: int, calibration: Calibration | None) -> None:
+    """A calibration after step `step` of `steps` where it ends its part."""
+    if calibration is not None and (step == steps - 1 or _part_of(step + 1, steps) != _part_of(step, steps)):
+        calibration.part_done()
+
+
+def time_stream(
+    generator: Any, batch: int, frames: int = 100, calibration: Calibration | None = None
+) -> dict[str, Any]:
+    """Streaming throughput of `batch` characters: frames/s (all characters) and ms per step()
+    (with a `calibration`, one after the first step and after each of PARTS parts of the rest)."""
     if batch < 1 or frames < 1:
         raise ValueError(f"batch and frames must be >= 1, got {batch} and {frames}")
     stream = generator.stream([BENCH_TEXT] * batch, _routes(batch), seed=0)
-    w0, c0 = _clock()
-    stream.step()  # rolls the controller's look-ahead and decodes the first token
-    w1, c1 = _clock()
-    first, first_cpu = w1 - w0, c1 - c0
-    times, cpu = [], []
-    for _ in range(frames):
+    times, cpu = [], []  # seconds; the first step (which rolls the controller's look-ahead and
+    for step in range(frames + 1):  # decodes the first token) apart, as part 0
         w0, c0 = _clock()
         stream.step()
         w1, c1 = _clock()
         times.append(w1 - w0)
         cpu.append(c1 - c0)
+        if step == 0 and calibration is not None:
+            calibration.part_done()
+        elif step:
+            _end_of_part(step - 1, frames, calibration)
 
-    def summary(values: list[float], first_s: float) -> dict[str, float]:
+    def summary(values: np.ndarray) -> dict[str, float]:
+        steps = values[1:]
         return {
-            "frames_per_s": batch * frames / max(float(np.sum(values)), 1e-9),
-            "step_ms_median": float(np.median(values) * 1000.0),
-            "step_ms_p99": float(np.percentile(values, 99) * 1000.0),
-            "first_step_ms": first_s * 1000.0,
+            "frames_per_s": batch * frames / max(float(np.sum(steps)), 1e-9),
+            "step_ms_median": float(np.median(steps) * 1000.0),
+            "step_ms_p99": float(np.percentile(steps, 99) * 1000.0),
+            "first_step_ms": float(values[0] * 1000.0),
         }
 
-    return {"batch": batch, "frames": frames, **summary(times, first), "cpu": summary(cpu, first_cpu)}
+    parts = [0] + [1 + _part_of(step, frames) for step in range(frames)]
+    return _with_quiet({"batch": batch, "frames": frames}, summary, times, cpu, parts, calibration)
 
 
 # The ways an agent drives the env in the bench: following its route (world points, the route
@@ -275,9 +403,12 @@ def _agent_action(agent: str, info: dict, rng: np.random.Generator, shape: tuple
     return rng.uniform(-1.0, 1.0, shape).astype(np.float32)
 
 
-def time_env(generator: Any, steps: int = 1000, agent: str = "route") -> dict[str, float]:
+def time_env(
+    generator: Any, steps: int = 1000, agent: str = "route", calibration: Calibration | None = None
+) -> dict[str, Any]:
     """Per-step latency (ms) of motion_env/Waypoints-v0 over `steps` steps: median, p99 (resets
-    excluded); `agent` is "route" or "learner" (see :data:`AGENTS`)."""
+    excluded); `agent` is "route" or "learner" (see :data:`AGENTS`); with a `calibration`, one
+    after each of PARTS parts of the steps."""
     import gymnasium as gym
 
     import motion_env  # noqa: F401  (registers the environments)
@@ -294,23 +425,33 @@ def time_env(generator: Any, steps: int = 1000, agent: str = "route") -> dict[st
         w1, c1 = _clock()
         times.append((w1 - w0) * 1000.0)
         cpu.append((c1 - c0) * 1000.0)
+        _end_of_part(len(times) - 1, steps, calibration)
         if terminated or truncated:
             resets += 1
             _, info = env.reset(options=options)
     env.close()
-    result = {**_percentiles(times, (90, 99)), "steps": steps, "episodes_reset": resets, "agent": agent}
-    result["steps_per_s"] = 1000.0 / result["mean"]
-    result["cpu"] = _percentiles(cpu, (90, 99))
-    result["cpu"]["steps_per_s"] = 1000.0 / max(result["cpu"]["mean"], 1e-9)
-    return result
+
+    def summary(values: np.ndarray) -> dict[str, float]:
+        out = _percentiles(values, (90, 99))
+        return {**out, "steps_per_s": 1000.0 / max(out["mean"], 1e-9)}
+
+    parts = [_part_of(step, steps) for step in range(steps)]
+    result = {"steps": steps, "episodes_reset": resets, "agent": agent}
+    return _with_quiet(result, summary, times, cpu, parts, calibration)
 
 
 def vector_throughput(
-    generator: Any, num_envs: int, steps: int = 200, warmup: int = 20, seed: int = 0, agent: str = "route"
+    generator: Any,
+    num_envs: int,
+    steps: int = 200,
+    warmup: int = 20,
+    seed: int = 0,
+    agent: str = "route",
+    calibration: Calibration | None = None,
 ) -> dict:
     """Env steps per second of the batched vector env with `num_envs` characters (``steps_per_s``;
     ``frames_per_s`` counts the frames, the same at one frame a step); `agent` is a key of
-    :data:`AGENTS`."""
+    :data:`AGENTS`; with a `calibration`, one after each of PARTS parts of the steps."""
     import gymnasium as gym
 
     import motion_env  # noqa: F401  (registers the environments)
@@ -329,22 +470,29 @@ def vector_throughput(
     shape = envs.action_space.shape
     for _ in range(warmup):
         _, _, _, _, infos = envs.step(_agent_action(agent, infos, rng, shape))
-    w0, c0 = _clock()
-    for _ in range(steps):
+    if calibration is not None:
+        calibration.part_done()  # part 0: the warm-up
+    elapsed, cpu = [0.0] * min(PARTS, steps), [0.0] * min(PARTS, steps)  # seconds of each part
+    for step in range(steps):
+        w0, c0 = _clock()
         _, _, _, _, infos = envs.step(_agent_action(agent, infos, rng, shape))
-    w1, c1 = _clock()
+        w1, c1 = _clock()
+        elapsed[_part_of(step, steps)] += w1 - w0
+        cpu[_part_of(step, steps)] += c1 - c0
+        _end_of_part(step, steps, calibration)
     envs.close()
-    elapsed, cpu = w1 - w0, max(c1 - c0, 1e-9)
     frames = AGENTS[agent]["frames_per_step"]
 
-    def rates(seconds: float) -> dict[str, float]:
+    def rates(seconds: np.ndarray) -> dict[str, float]:
+        total = max(float(np.sum(seconds)), 1e-9)
         return {
-            "ms_per_step": 1000.0 * seconds / steps,
-            "steps_per_s": num_envs * steps / seconds,
-            "frames_per_s": num_envs * steps * frames / seconds,
+            "ms_per_step": 1000.0 * total / steps,
+            "steps_per_s": num_envs * steps / total,
+            "frames_per_s": num_envs * steps * frames / total,
         }
 
-    return {"num_envs": num_envs, "agent": agent, "steps": steps, **rates(elapsed), "cpu": rates(cpu)}
+    result = {"num_envs": num_envs, "agent": agent, "steps": steps}
+    return _with_quiet(result, rates, elapsed, cpu, np.arange(1, len(elapsed) + 1), calibration)
 
 
 def hardware() -> dict[str, Any]:

@@ -3,6 +3,8 @@ wall-time ones."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import pytest
 
 from motion_env.evaluation import bench
@@ -27,6 +29,30 @@ def test_cpu_equivalents_scale_by_the_cpu_calibration(monkeypatch) -> None:
     assert out["quiet_cpu"]["median"] == pytest.approx(8.0 * cpu_scale)
     assert out["quiet_cpu"]["steps_per_s"] == pytest.approx(60.0 / cpu_scale)
     assert "runs" not in out["quiet"]
+
+
+def test_each_run_is_scaled_by_the_calibrations_on_its_two_sides(monkeypatch) -> None:
+    """A calibration between runs: a run is scaled by the two beside it, not every run by the
+    pair around the whole measurement (here that pair alone says a quiet machine)."""
+    calibrations = iter([(0.032, 0.016), (0.064, 0.032), (0.064, 0.032), (0.032, 0.016)])
+    monkeypatch.setattr(bench, "calibration_times", lambda: next(calibrations))
+    ticks = iter([(0.0, 0.0), (0.010, 0.005), (1.0, 1.0), (1.010, 1.005), (2.0, 2.0), (2.010, 2.005)])
+    monkeypatch.setattr(bench, "_clock", lambda: next(ticks))  # every run 10 ms (5 ms of CPU)
+    generator = SimpleNamespace(generate=lambda *args, **kwargs: None)
+    out = calibrated(bench.time_clip, generator, runs=3, warmup=0)
+    assert out["median"] == pytest.approx(10.0) and out["cpu"]["median"] == pytest.approx(5.0)
+    # the runs lie between calibrations of 32 | 64, 64 | 64 and 64 | 32 ms
+    quiet = sorted(10.0 * REFERENCE_CALIBRATION_S / c for c in (0.048, 0.064, 0.048))
+    assert out["quiet"]["min"] == pytest.approx(quiet[0])
+    assert out["quiet"]["median"] == pytest.approx(quiet[1])
+    assert out["quiet_cpu"]["median"] == pytest.approx(5.0 * REFERENCE_CALIBRATION_S / 0.024)
+    assert out["calibration_ms"] == pytest.approx(48.0) and out["calibration_cpu_ms"] == pytest.approx(24.0)
+
+
+def test_many_steps_are_timed_in_parts_that_cover_them_all() -> None:
+    for steps in (1, 3, 5, 8, 500):
+        parts = [bench._part_of(step, steps) for step in range(steps)]
+        assert parts == sorted(parts) and set(parts) == set(range(min(bench.PARTS, steps)))
 
 
 def test_table_prints_both_equivalents() -> None:
