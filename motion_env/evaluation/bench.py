@@ -342,8 +342,10 @@ def time_stream(
     if batch < 1 or frames < 1:
         raise ValueError(f"batch and frames must be >= 1, got {batch} and {frames}")
     stream = generator.stream([BENCH_TEXT] * batch, _routes(batch), seed=0)
-    times, cpu = [], []  # seconds; the first step (which rolls the controller's look-ahead and
-    for step in range(frames + 1):  # decodes the first token) apart, as part 0
+    # Seconds of each step; the first (which rolls the controller's look-ahead and decodes the
+    # first token) is reported apart, and is part 0.
+    times, cpu = [], []
+    for step in range(frames + 1):
         w0, c0 = _clock()
         stream.step()
         w1, c1 = _clock()
