@@ -10,20 +10,12 @@ machine; the one whose equivalents vary less over the repeats is the one to trus
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 import torch
 
-from motion_env.evaluation.bench import BENCH_TEXT, BENCH_WAYPOINTS, Calibration, calibration_s
-from motion_env.evaluation.bench import REFERENCE_CALIBRATION_S as REFERENCE
+from motion_env.evaluation.bench import calibrated, time_clip
 from motion_env.generation.generator import RANDOM_MODEL, MotionGenerator
-
-
-def _clip_ms(gen: MotionGenerator, seed: int) -> float:
-    start = time.perf_counter()
-    gen.generate(BENCH_TEXT, BENCH_WAYPOINTS, num_frames=200, seed=seed)
-    return (time.perf_counter() - start) * 1000.0
 
 
 def main() -> None:
@@ -37,21 +29,15 @@ def main() -> None:
             p.error(f"--{name} must be >= 1, got {getattr(args, name)}")
     torch.set_num_threads(1)
     gen = MotionGenerator.from_pretrained(RANDOM_MODEL if args.weights == "random" else args.weights)
-    for seed in range(3):
-        _clip_ms(gen, 1000 + seed)  # warm-up
+    time_clip(gen, runs=1, warmup=2)  # warm-up
     raw, around, beside = [], [], []
     for _ in range(args.repeats):
-        before = calibration_s()
-        times = [_clip_ms(gen, seed) for seed in range(args.runs)]
-        after = calibration_s()
-        raw.append(np.median(times))
-        around.append(np.median(times) * REFERENCE / ((before + after) / 2))
-        calibration = Calibration()
-        times = []
-        for seed in range(args.runs):
-            times.append(_clip_ms(gen, seed))
-            calibration.part_done()
-        beside.append(np.median(np.asarray(times) * calibration.factors()[0]))
+        # The bench's own clip timing, scaled both ways: a measure without a calibration keyword
+        # gets the pair around it (the old way), time_clip itself one between runs.
+        old = calibrated(lambda: time_clip(gen, args.runs, warmup=0))
+        raw.append(old["median"])
+        around.append(old["quiet"]["median"])
+        beside.append(calibrated(time_clip, gen, args.runs, warmup=0)["quiet"]["median"])
     print(f"200-frame clip, median of {args.runs} runs, {args.repeats} repeats (ms):")
     for name, values in (
         ("raw (wall time)", raw),

@@ -479,8 +479,9 @@ def vector_throughput(
         w0, c0 = _clock()
         _, _, _, _, infos = envs.step(_agent_action(agent, infos, rng, shape))
         w1, c1 = _clock()
-        elapsed[_part_of(step, steps)] += w1 - w0
-        cpu[_part_of(step, steps)] += c1 - c0
+        part = _part_of(step, steps)
+        elapsed[part] += w1 - w0
+        cpu[part] += c1 - c0
         _end_of_part(step, steps, calibration)
     envs.close()
     frames = AGENTS[agent]["frames_per_step"]

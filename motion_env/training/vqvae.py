@@ -71,8 +71,8 @@ class VQVAETrainConfig(TrainConfig):
             )
         if self.leg_weight != 1.0 and not set(SMOOTH_JOINTS[self.smooth_joints]) & set(LEG_JOINTS):
             raise ValueError(
-                f"VQVAETrainConfig.leg_weight weighs the legs' difference losses, which "
-                f"smooth_joints={self.smooth_joints!r} has none of; got leg_weight={self.leg_weight!r} "
+                f"VQVAETrainConfig.leg_weight weighs the legs' difference losses, and that set of "
+                f"joints has no leg joint; got leg_weight={self.leg_weight!r} "
                 f"with smooth_joints={self.smooth_joints!r}"
             )
         if self.start_weight != 1.0 and self.context:
