@@ -51,7 +51,7 @@ from motion_env.models.waypoint_features import (
 from motion_env.motion.trajectory import validate_waypoints
 from motion_env.motion.validation import CheckedConfig, NonNegativeFloat, PositiveFloat, PositiveInt
 
-# The most characters a roll-out without gradients runs on numpy (PathController._ops).
+# The most characters a roll-out without gradients runs on numpy (PathController.frame_ops).
 NUMPY_MAX_BATCH = 8
 
 
@@ -292,12 +292,18 @@ class PathController(nn.Module):
         feats, target = slot_features(view, state.pos, state.theta, frame, self.config.max_time_to_go, const)
         return feats, target, view.final
 
-    def step_inputs(self, state: ControllerState) -> torch.Tensor:
+    def step_inputs(self, state: ControllerState, ops: TorchOps = TORCH) -> Array:
         """(B, ``step_input_dim``) what the network reads at `state`'s frame: the captions'
         projection, the waypoint features and the last velocity (halved), as :meth:`_frame` builds
-        them inline (for the look-ahead head, :mod:`motion_env.models.lookahead`)."""
-        feats, _, _ = self.waypoint_features(state)
-        return torch.cat([self._text_features(state.text), feats, state.vel * 0.5], dim=-1)
+        them inline (for the look-ahead head, :mod:`motion_env.models.lookahead`), in `ops`'s
+        arrays (:meth:`frame_ops`: numpy for a few characters, at a third of torch's cost)."""
+        c = self.config
+        view = ops.view(route_view(state.waypoints, state.count, state.queue, c.num_slots))
+        frame = ops.array(state.frame.unsqueeze(1).float())
+        const = ops.constants(c.step_scale, c.turn_scale, state.pos.dtype)
+        pos, theta, vel = (ops.array(x) for x in (state.pos, state.theta, state.vel))
+        feats, _ = slot_features(view, pos, theta, frame, c.max_time_to_go, const, ops)
+        return ops.cat([ops.array(self._text_features(state.text)), feats, vel * const.half], -1)
 
     def _text_features(self, text: torch.Tensor) -> torch.Tensor:
         """(B, text_proj) the captions' projection. A rollout keeps one caption tensor for many
@@ -319,7 +325,7 @@ class PathController(nn.Module):
             self.out[0].weight, self.out[0].bias, self.out[2].weight, self.out[2].bias,
         )  # fmt: skip
 
-    def _ops(self, batch: int = 1) -> TorchOps:
+    def frame_ops(self, batch: int = 1) -> TorchOps:
         """The backend a roll-out of `batch` characters runs on (:mod:`motion_env.models.frame_ops`),
         as :attr:`frame_backend` says. "auto": numpy on the CPU without gradients for a few
         characters (a third of torch's per-operation cost at one frame's sizes), else torch (its
@@ -379,7 +385,7 @@ class PathController(nn.Module):
         """Advance every character by `num_steps` frames: the closed loop of training and inference.
 
         Differentiable when gradients are on (then on torch; without them on the CPU the frames
-        run on numpy, :meth:`_ops`). Per frame only the network and the features that move with
+        run on numpy, :meth:`frame_ops`). Per frame only the network and the features that move with
         the character are computed; the route's part of the features (:func:`route_view`) is
         made again only when a waypoint is passed (tested on each character's current target: a
         timed one by its frame, without touching tensors, an untimed one by its distance).
@@ -390,7 +396,7 @@ class PathController(nn.Module):
         """
         c = self.config
         num_steps = int(num_steps)
-        ops = self._ops(state.pos.shape[0])
+        ops = self.frame_ops(state.pos.shape[0])
         weights = ops.weights(self._weights())
         const = ops.constants(c.step_scale, c.turn_scale, state.pos.dtype)
         pos, theta, vel, hidden = (ops.array(x) for x in (state.pos, state.theta, state.vel, state.hidden))

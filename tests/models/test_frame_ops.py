@@ -65,7 +65,7 @@ def test_a_numpy_roll_out_equals_the_torch_one(batch: int) -> None:
         state = model.init_state(
             torch.randn(batch, 32), ROUTES[:batch], starts, generator=torch.Generator().manual_seed(0)
         )
-        assert model._ops(batch) is model._numpy
+        assert model.frame_ops(batch) is model._numpy
         new, trace = model.run(state, 150, trace=True)
         model.frame_backend = "torch"
         ref, ref_trace = model.run(state, 150, trace=True)
@@ -83,14 +83,14 @@ def test_a_numpy_roll_out_equals_the_torch_one(batch: int) -> None:
 def test_a_roll_out_with_gradients_or_many_rows_runs_on_torch() -> None:
     model = PathController.drifting(ControllerConfig(text_dim=8, text_proj=4, hidden=8, mlp=8), 0.5)
     state = model.init_state(torch.randn(2, 8), [np.array([[0.0, 2.0, 20.0]], np.float32), None])
-    assert model._ops(2) is TORCH
+    assert model.frame_ops(2) is TORCH
     roots, _ = model(state, 5)
     assert roots.requires_grad
     with torch.no_grad():
-        assert model._ops(2) is model._numpy
-        assert model._ops(NUMPY_MAX_BATCH + 1) is TORCH  # many rows: torch's matrix products win
+        assert model.frame_ops(2) is model._numpy
+        assert model.frame_ops(NUMPY_MAX_BATCH + 1) is TORCH  # many rows: torch's matrix products win
         model.frame_backend = "numpy"
-        assert model._ops(NUMPY_MAX_BATCH + 1) is model._numpy
+        assert model.frame_ops(NUMPY_MAX_BATCH + 1) is model._numpy
 
 
 def _blas_threads() -> list[int]:

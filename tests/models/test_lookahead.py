@@ -63,9 +63,10 @@ def test_predict_shapes_and_the_start_frame(gen: MotionGenerator) -> None:
 
 
 @torch.no_grad()
-def test_offsets_round_trip_through_predict(gen: MotionGenerator) -> None:
+def test_offsets_round_trip_through_predict(gen: MotionGenerator, monkeypatch: pytest.MonkeyPatch) -> None:
     """The training targets (offsets_from_roots) are what predict turns back into world roots."""
     ctrl = gen.pipeline.controller
+    monkeypatch.setattr(ctrl, "frame_backend", "torch")  # the head's forward, replaced below, is torch's
     state = ctrl.init_state(torch.randn(2, ctrl.config.text_dim), None, np.array([[1, 2, 0.3], [-1, 0, 2.0]]))
     _, trace = ctrl.run(state, 20)
     offsets = offsets_from_roots(trace.roots, state)
@@ -156,3 +157,28 @@ def test_stream_head_mode(gen: MotionGenerator) -> None:
         np.testing.assert_allclose(oracle, exact, atol=1e-4)
     finally:
         gen.pipeline.lookahead = None
+
+
+@torch.no_grad()
+def test_predict_on_numpy_agrees_with_torch(gen: MotionGenerator, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A few characters without gradients predict on numpy (PathController.frame_ops): the same
+    roots as torch's operations to float32 rounding, as a tensor."""
+    ctrl = gen.pipeline.controller
+    torch.manual_seed(0)
+    head = _head_for(ctrl, width=32, layers=2)
+    for p in head.parameters():
+        torch.nn.init.normal_(p, std=0.2)
+    d, h = head.config.input_dim, head.config.horizon
+    head.set_normalization(torch.randn(d), torch.rand(d) + 0.5, torch.rand(h, 3) + 0.1)
+    routes = [[[1.0, 2.0]], None, [[0.0, 3.0, 40], [2.0, 4.0, 80]]]
+    starts = np.array([[0, 0, 0.3], [1, 0, 2.0], [0, 1, -1.0]])
+    state = ctrl.init_state(torch.randn(3, ctrl.config.text_dim), routes, starts)
+    state, _ = ctrl.run(state, 7)
+    roots = {"torch": head.predict(ctrl, state)}  # three characters: "auto" takes numpy
+    monkeypatch.setattr(ctrl, "frame_backend", "torch")
+    roots["torch"] = head.predict(ctrl, state)
+    monkeypatch.setattr(ctrl, "frame_backend", "auto")
+    monkeypatch.setattr(head, "forward", lambda x: pytest.fail("torch's forward ran on numpy's turn"))
+    roots["numpy"] = head.predict(ctrl, state)
+    assert isinstance(roots["numpy"], torch.Tensor) and roots["numpy"].dtype == torch.float32
+    np.testing.assert_allclose(roots["numpy"].numpy(), roots["torch"].numpy(), atol=2e-5)
