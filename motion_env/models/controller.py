@@ -48,6 +48,7 @@ from motion_env.models.waypoint_features import (
     slot_features,
     step_input_dim,
 )
+from motion_env.motion.skeleton import FPS
 from motion_env.motion.trajectory import validate_waypoints
 from motion_env.motion.validation import CheckedConfig, NonNegativeFloat, PositiveFloat, PositiveInt
 
@@ -112,6 +113,10 @@ class PathController(nn.Module):
         # CPU without gradients, else torch), "torch" (the same numbers on any device, to the bit),
         # or "numpy" (CPU, no gradients); the two agree to float32 rounding.
         self.frame_backend = "auto"
+        # Whether a roll-out on numpy runs as one compiled loop (controller_jit, numba) or frame by
+        # frame on numpy's operations (the reference it is tested against); the same numbers to
+        # float32 rounding.
+        self.compiled = True
 
     @classmethod
     def drifting(cls, config: ControllerConfig, std: float) -> PathController:
@@ -398,6 +403,8 @@ class PathController(nn.Module):
         num_steps = int(num_steps)
         ops = self.frame_ops(state.pos.shape[0])
         weights = ops.weights(self._weights())
+        if ops is self._numpy and self.compiled:
+            return self._run_compiled(state, num_steps, trace, weights)
         const = ops.constants(c.step_scale, c.turn_scale, state.pos.dtype)
         pos, theta, vel, hidden = (ops.array(x) for x in (state.pos, state.theta, state.vel, state.hidden))
         queue = state.queue
@@ -456,6 +463,37 @@ class PathController(nn.Module):
             return new, Trace(roots=roots)
         vel, hidden = (ops.tensor(ops.stack(x, 1), state.pos) for x in (vels, hiddens))
         return new, Trace(roots, vel, hidden, torch.stack(queues, dim=1))
+
+    def _run_compiled(
+        self, state: ControllerState, num_steps: int, trace: bool, weights: tuple[np.ndarray, ...]
+    ) -> tuple[ControllerState, Trace]:
+        """:meth:`run`'s frames as one compiled loop (:mod:`motion_env.models.controller_jit`)."""
+        from motion_env.models.controller_jit import rollout
+
+        c = self.config
+        constants = (
+            c.num_slots, c.max_time_to_go, c.step_scale, c.turn_scale, c.arrive_radius, c.seek_rate, FPS
+        )  # fmt: skip
+        out = rollout(
+            weights,
+            self._text_features(state.text).numpy(),
+            *(x.numpy() for x in (state.waypoints, state.count, state.queue, state.pos, state.theta)),
+            *(x.numpy() for x in (state.vel, state.hidden, state.frame)),
+            num_steps,
+            constants,
+            trace,
+        )
+        device = state.pos.device
+        new = replace(
+            state,
+            **{k: torch.from_numpy(getattr(out, k)).to(device) for k in ("pos", "theta", "vel", "hidden")},
+            queue=torch.from_numpy(out.queue).to(device),
+            frame=state.frame + num_steps,
+        )
+        roots = torch.from_numpy(out.roots)
+        if not trace:
+            return new, Trace(roots=roots)
+        return new, Trace(roots, *(torch.from_numpy(x) for x in (out.vels, out.hiddens, out.queues)))
 
     def _passed(self, ops: TorchOps, view: RouteView, due: float, n: int, pos: Array) -> bool:
         """Whether some character passes its current target at step `n` of a roll-out: a timed one

@@ -216,6 +216,9 @@ class TokenGPT(nn.Module):
         # (numpy for a few rows on the CPU without gradients, in eval mode, else torch), "torch"
         # (any device, the module's own forward pass), or "numpy"; the two agree to float32 rounding.
         self.step_backend = "auto"
+        # Whether a token step on numpy runs as one compiled loop (gpt_jit, numba) or on numpy's
+        # operations (the reference it is tested against); the same logits to float32 rounding.
+        self.compiled = True
 
     @staticmethod
     def _init_weights(module: nn.Module) -> None:

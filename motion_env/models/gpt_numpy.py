@@ -54,6 +54,7 @@ class _Weights(NamedTuple):
     path_out: np.ndarray
     path_out_b: np.ndarray
     layers: tuple[_Layer, ...]
+    stacked: _Layer  # every layer's weights of a kind in one (n_layer, ...) array (layers: views)
     head: np.ndarray
     head_b: np.ndarray
     eps: np.float32
@@ -103,6 +104,10 @@ def _prepare(gpt: nn.Module) -> _Weights:
                 *_plain(out),
             )
         )
+    # Each kind of weight of every layer in one (n_layer, ...) array (the compiled step's
+    # arguments, gpt_jit), the layers' arrays views of them.
+    stacked = _Layer(*(np.stack(arrays) for arrays in zip(*layers, strict=True)))
+    layers = [_Layer(*(a[i] for a in stacked)) for i in range(len(layers))]
     path_fc, _, path_out = gpt.path_mlp
     (path_fc_w, path_fc_b), (path_out_w, path_out_b) = _plain(path_fc), _plain(path_out)
     head, head_b = _folded(gpt.ln_f, gpt.head)
@@ -117,6 +122,7 @@ def _prepare(gpt: nn.Module) -> _Weights:
         path_out=path_out_w,
         path_out_b=path_out_b,
         layers=tuple(layers),
+        stacked=stacked,
         head=head,
         head_b=head_b,
         eps=np.float32(epsilons.pop()),
@@ -216,5 +222,15 @@ class NumpyStep:
         )  # (R, C)
         # Additive mask over the cached positions and the new one (which always sees itself).
         seen = np.concatenate([valid.numpy(), np.ones((len(x), 1), bool)], 1)
-        mask = np.where(seen, np.float32(0.0), np.float32(-np.inf))[:, None, None]  # (R, 1, 1, L+1)
-        return self._blocks(gpt, x[:, None], mask, past)
+        mask = np.where(seen, np.float32(0.0), np.float32(-np.inf))  # (R, L+1)
+        if not gpt.compiled:
+            return self._blocks(gpt, x[:, None], mask[:, None, None], past)
+        from motion_env.models.gpt_jit import step
+
+        kv, start = past
+        keys, values = (tuple(buffer.numpy() for buffer in buffers) for buffers in zip(*kv, strict=True))
+        logits = step(
+            x, mask, *w.stacked, w.head, w.head_b, w.eps, keys, values, start, gpt.config.n_head
+        )  # writes each layer's new key and value into its window buffers
+        end = start + 1
+        return torch.from_numpy(logits[:, None]), [(k[:, :, :end], v[:, :, :end]) for k, v in kv]

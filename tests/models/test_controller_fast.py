@@ -114,12 +114,13 @@ def _routes(rng: np.random.Generator, b: int) -> list[np.ndarray | None]:
     return out
 
 
-@pytest.mark.parametrize("backend", ["torch", "numpy"])
+@pytest.mark.parametrize("backend", ["torch", "numpy", "compiled"])
 @pytest.mark.parametrize("batch", [1, 3, 7])
 def test_run_equals_the_frame_by_frame_reference(batch: int, backend: str) -> None:
     model = _tiny(batch)
     if backend == "torch":  # what a roll-out on a GPU runs without gradients
         model.frame_backend = "torch"
+    model.compiled = backend == "compiled"  # the numpy backend as one compiled loop, or frame by frame
     rng = np.random.default_rng(batch)
     emb = torch.randn(batch, 16)
     starts = rng.normal(size=(batch, 3)).astype(np.float32)
@@ -235,3 +236,28 @@ def test_a_ring_restores_every_row_as_it_restores_some() -> None:
             getattr(whole, name), getattr(by_parts, name), rtol=0, atol=0, equal_nan=True
         )
     assert torch.equal(whole.hidden[1], trace.hidden[1, 6])  # frame 7: the 7th frame of the run
+
+
+@pytest.mark.parametrize("batch", [5, 8])
+def test_the_compiled_loop_traces_the_numpy_frames(batch: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """controller_jit's loop against PathController._frame on numpy: every frame's root, velocity,
+    GRU state and queue, over routes timed, untimed, mixed, none and arrived at (the gating)."""
+    model = _tiny(batch + 10, scale=1.0)
+    rng = np.random.default_rng(batch)
+    emb = torch.randn(batch, 16)
+    routes = _routes(rng, batch)
+    routes[2] = np.array([[1.0, 1.0, 5], [2.0, 2.0, 10], [3.0, 3.0, 200]], np.float32)  # passed by its frames
+    with torch.no_grad():
+        state = model.init_state(emb, routes, rng.normal(size=(batch, 3)).astype(np.float32))
+        model.compiled = False
+        ref_state, ref = model.run(state, 120, trace=True)
+        model.compiled = True
+        monkeypatch.setattr(model, "_frame", lambda *a: pytest.fail("the numpy frame ran"))
+        new, trace = model.run(state, 120, trace=True)
+    assert torch.equal(trace.queue, ref.queue) and torch.equal(new.queue, ref_state.queue)
+    assert int(ref_state.queue.max()) > 0  # some waypoints were passed on the way
+    pairs = [(getattr(trace, k), getattr(ref, k), k) for k in ("roots", "vel", "hidden")]
+    pairs += [(getattr(new, k), getattr(ref_state, k), k) for k in ("pos", "theta", "vel", "hidden")]
+    for got, want, name in pairs:
+        np.testing.assert_allclose(got, want, rtol=0, atol=2e-5, err_msg=name)
+    assert torch.equal(new.frame, state.frame + 120)

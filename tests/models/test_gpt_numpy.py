@@ -30,7 +30,8 @@ def model(seed: int = 0) -> TokenGPT:
 def _run(gpt: TokenGPT, backend: str, rows: int, guidance: float = 1.0) -> tuple[torch.Tensor, torch.Tensor]:
     """Tokens and logits of 20 steps (the window of 8 slides twice), row 0 restarted with another
     caption at step 6 and held (mid-token) at steps 9-10."""
-    gpt.step_backend = backend
+    gpt.step_backend = "numpy" if backend == "compiled" else backend
+    gpt.compiled = backend == "compiled"  # a numpy step as one compiled loop, or numpy's operations
     g = torch.Generator().manual_seed(1)
     text, path = torch.randn(rows, TEXT, generator=g), torch.randn(rows, 20, D_PATH, generator=g)
     cache = gpt.new_cache(text, guidance)
@@ -47,14 +48,30 @@ def _run(gpt: TokenGPT, backend: str, rows: int, guidance: float = 1.0) -> tuple
     return torch.stack(tokens, 1), torch.stack(logits, 1)
 
 
+@pytest.mark.parametrize("backend", ["numpy", "compiled"])
 @pytest.mark.parametrize(("rows", "guidance"), [(1, 1.0), (3, 1.0), (2, 2.5)])
-def test_numpy_steps_equal_torch_ones(rows: int, guidance: float) -> None:
+def test_numpy_steps_equal_torch_ones(rows: int, guidance: float, backend: str) -> None:
     gpt = model()
-    tokens, logits = _run(gpt, "numpy", rows, guidance)
+    tokens, logits = _run(gpt, backend, rows, guidance)
     want_tokens, want_logits = _run(gpt, "torch", rows, guidance)
     assert torch.equal(tokens, want_tokens)
     torch.testing.assert_close(logits, want_logits, rtol=0.0, atol=2e-5)
     assert logits.std() > 1.0  # the outputs are far from uniform: the comparison means something
+
+
+def test_a_compiled_step_does_not_run_numpy_operations(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With ``compiled`` (the default) a new token runs in gpt_jit; numpy's blocks only re-prime
+    the window (no logits)."""
+    gpt = model()
+    blocks = gpt._numpy_step._blocks
+
+    def reprime_only(*args, logits: bool = True):
+        assert not logits, "a token step ran on numpy's operations"
+        return blocks(*args, logits=logits)
+
+    monkeypatch.setattr(gpt._numpy_step, "_blocks", reprime_only)
+    tokens, _ = _run(gpt, "compiled", 2)
+    assert tokens.shape == (2, 20)
 
 
 def test_generation_draws_the_same_tokens() -> None:
