@@ -28,6 +28,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from motion_env.models.jit_cache import note_first_compile
+
 __all__ = ["JitRollout", "rollout"]
 
 
@@ -76,6 +78,7 @@ def rollout(
         trace: also return every frame's velocity, GRU state and queue.
     """
     f32 = np.float32
+    note_first_compile(_rollout, "the path controller's roll-out")
     arrays = [np.ascontiguousarray(w, f32) for w in weights]
     return JitRollout(
         *_rollout(

@@ -226,7 +226,9 @@ class NumpyStep:
         if not gpt.compiled:
             return self._blocks(gpt, x[:, None], mask[:, None, None], past)
         from motion_env.models.gpt_jit import step
+        from motion_env.models.jit_cache import note_first_compile
 
+        note_first_compile(step, "the GPT's token step")
         kv, start = past
         keys, values = (tuple(buffer.numpy() for buffer in buffers) for buffers in zip(*kv, strict=True))
         logits = step(
