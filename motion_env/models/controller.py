@@ -39,6 +39,7 @@ from motion_env.models.frame_ops import (
     gradients_state,
     numpy_chosen,
 )
+from motion_env.models.jit_cache import jit_enabled
 from motion_env.models.waypoint_features import (
     RouteView,
     from_heading_frame_torch,
@@ -403,7 +404,7 @@ class PathController(nn.Module):
         num_steps = int(num_steps)
         ops = self.frame_ops(state.pos.shape[0])
         weights = ops.weights(self._weights())
-        if ops is self._numpy and self.compiled:
+        if ops is self._numpy and self.compiled and jit_enabled():
             return self._run_compiled(state, num_steps, trace, weights)
         const = ops.constants(c.step_scale, c.turn_scale, state.pos.dtype)
         pos, theta, vel, hidden = (ops.array(x) for x in (state.pos, state.theta, state.vel, state.hidden))

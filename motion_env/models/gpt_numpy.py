@@ -24,6 +24,7 @@ import torch
 from torch import nn
 
 from motion_env.models.frame_ops import NumpyOps
+from motion_env.models.jit_cache import jit_enabled
 
 # (The GPT is typed as a module here: models.gpt imports this one, not the other way round.)
 KV = list[tuple[torch.Tensor, torch.Tensor]]
@@ -223,7 +224,7 @@ class NumpyStep:
         # Additive mask over the cached positions and the new one (which always sees itself).
         seen = np.concatenate([valid.numpy(), np.ones((len(x), 1), bool)], 1)
         mask = np.where(seen, np.float32(0.0), np.float32(-np.inf))  # (R, L+1)
-        if not gpt.compiled:
+        if not (gpt.compiled and jit_enabled()):
             return self._blocks(gpt, x[:, None], mask[:, None, None], past)
         from motion_env.models.gpt_jit import step
         from motion_env.models.jit_cache import note_first_compile

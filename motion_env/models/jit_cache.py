@@ -1,7 +1,9 @@
-"""The compiled loops' first use: numba compiles them once per machine (about 13 s for the path
-controller's and the GPT's together on the 2-core development CPU) and keeps them in its cache;
-a process that finds no cached copy says so on stderr before it compiles, instead of pausing
-without a word."""
+"""The compiled loops' switch and first use. numba compiles them once per machine (about 13 s for
+the path controller's and the GPT's together on the 2-core development CPU) and keeps them in its
+cache; a process that finds no cached copy says so on stderr before it compiles, instead of
+pausing without a word. Without numba (or with ``NUMBA_DISABLE_JIT=1``, which would run the
+loops as Python, element by element) the models run numpy's operations instead, the same numbers
+to float32 rounding."""
 
 from __future__ import annotations
 
@@ -9,9 +11,26 @@ import os
 import sys
 from typing import Any
 
-__all__ = ["note_first_compile"]
+__all__ = ["jit_enabled", "note_first_compile"]
 
 _checked: set[str] = set()
+_enabled: bool | None = None
+
+
+def jit_enabled() -> bool:
+    """Whether the compiled loops run: numba imports and its JIT is on (checked once a process)."""
+    global _enabled
+    if _enabled is None:
+        if os.environ.get("NUMBA_DISABLE_JIT", "0") not in ("", "0"):
+            _enabled = False
+        else:
+            try:
+                import numba  # noqa: F401
+            except ImportError:
+                _enabled = False
+            else:
+                _enabled = True
+    return _enabled
 
 
 def note_first_compile(dispatcher: Any, what: str) -> None:
