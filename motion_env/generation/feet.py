@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from motion_env.models.jit_cache import jit_enabled, note_first_compile
 from motion_env.motion.rotations import qbetween, qrot, vector_norm
 from motion_env.motion.skeleton import LEGS
 
@@ -313,6 +314,14 @@ class FootPinner:
         pin = np.where(held[:, 0, :, None], first, np.nan)  # (R, legs, 2)
         glide, offset = self.glide[rows], self.offset[rows]
         released, since = self.released[rows], self.since[rows]
+        if not check.any() and jit_enabled():  # no pin is cut: the loop below, compiled (feet_jit)
+            from motion_env.generation.feet_jit import pin_frames
+
+            note_first_compile(pin_frames, "the foot pinner's frame loop")
+            constants = (FOOT_GLIDE, FOOT_CREEP_RATE, FOOT_CREEP, FOOT_MAX_OFFSET, FOOT_BLEND)
+            state = (pin, glide, offset, released, since)  # updated in place
+            offsets = pin_frames(held, fresh, shown, fresh_glide, *state, *constants)
+            return self._keep(rows, kinds, pins, pin, glide, offset, released, since, both, offsets)
         offsets = np.zeros(kinds.shape + (2,))
         for t in range(joints.shape[1]):
             h, f, xz = held[:, t], fresh[:, t], shown[:, t]  # (R, legs), (R, legs), (R, legs, 2)
@@ -336,6 +345,11 @@ class FootPinner:
             pin = np.where(h[..., None], xz + moved, np.nan)  # the pin slides with the foot where it is cut
             released = np.where(h[..., None], moved, released)
             offset = offsets[:, t] = np.where(h[..., None], moved, released * release_fade(since)[..., None])
+        return self._keep(rows, kinds, pins, pin, glide, offset, released, since, both, offsets)
+
+    def _keep(self, rows, kinds, pins, pin, glide, offset, released, since, both, offsets) -> np.ndarray:  # noqa: PLR0913
+        """:meth:`_pin`'s end: the state the frames leave, kept for the next frames of `rows`;
+        returns `offsets`."""
         last = kinds[:, -1]  # the pin of the last frame's kind is kept, the other is none
         for kind in (0, 1):
             pins[:, :, kind] = np.where((last == kind)[..., None], pin, np.nan)
