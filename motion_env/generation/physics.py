@@ -33,6 +33,8 @@ same filter given the whole clip at once.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from motion_env.generation.ground import (
@@ -49,6 +51,7 @@ from motion_env.generation.ground import (
     swing_clearance,
 )
 from motion_env.generation.height_plan import GRAVITY, STANCE_ACCELERATION, plan_heights
+from motion_env.models.jit_cache import jit_enabled, note_first_compile
 from motion_env.motion.mass import centre_of_mass
 from motion_env.motion.rotations import vector_norm
 from motion_env.motion.skeleton import FOOT_JOINTS, FPS, LEGS, NUM_JOINTS
@@ -215,11 +218,14 @@ class PhysicsFilter:
         flagged feet: a streamed jump's knee at 72 m/s^2): the pull fades by RELEASE_FADE a frame
         instead. A toe-off whose foot was nearly on the floor lets it go at once."""
         down = planted & (soles < PLANT_REACH)
-        out = np.zeros(soles.shape)
         last = self.pull[rows]
-        for t in range(soles.shape[1]):
-            fade = np.where(planted[:, t] | (last > RELEASE_AT_ONCE), RELEASE_FADE * last, 0.0)
-            out[:, t] = last = np.where(down[:, t], np.maximum(soles[:, t], 0.0), fade)
+        if jit_enabled():
+            out = _loops().release_frames(down, planted, soles, last, RELEASE_FADE, RELEASE_AT_ONCE)
+        else:
+            out = np.zeros(soles.shape)
+            for t in range(soles.shape[1]):
+                fade = np.where(planted[:, t] | (last > RELEASE_AT_ONCE), RELEASE_FADE * last, 0.0)
+                out[:, t] = last = np.where(down[:, t], np.maximum(soles[:, t], 0.0), fade)
         self.pull[rows] = last
         return down, np.where(down, 0.0, out)
 
@@ -307,12 +313,15 @@ class PhysicsFilter:
         support gap (R, n) (NaN: unknown) followed slowly from its first value, so a body that
         floats or sinks throughout is moved, while a foot that lifts early or lands late (whose
         gap is noise between frames) moves no more than itself."""
-        out = np.zeros(gap.shape)
         last = self.floating[rows]
-        for t in range(gap.shape[1]):
-            g = gap[:, t]
-            followed = np.where(np.isnan(last), g, last + FLOAT_RATE * (g - last))
-            last = out[:, t] = np.where(np.isnan(g), last, followed)
+        if jit_enabled():
+            out = _loops().float_frames(np.ascontiguousarray(gap), last, FLOAT_RATE)
+        else:
+            out = np.zeros(gap.shape)
+            for t in range(gap.shape[1]):
+                g = gap[:, t]
+                followed = np.where(np.isnan(last), g, last + FLOAT_RATE * (g - last))
+                last = out[:, t] = np.where(np.isnan(g), last, followed)
         self.floating[rows] = last
         return np.where(np.isnan(out), 0.0, out)
 
@@ -362,10 +371,13 @@ class PhysicsFilter:
         )
         descent = np.where(stretch > SWING_STRAIGHT, np.inf, descent)
         speed = steps.reshape(steps.shape[:2] + (2, 2)).max(axis=-1) * FPS  # (R, n, 2): ankle or toe
-        free = np.zeros_like(speed)
         last = self.free[rows]
-        for t in range(joints.shape[1]):
-            last = free[:, t] = np.where(planted[:, t], 0.0, np.minimum(last + 1, 100))
+        if jit_enabled():
+            free = _loops().clearance_frames(np.ascontiguousarray(planted), last)
+        else:
+            free = np.zeros_like(speed)
+            for t in range(joints.shape[1]):
+                last = free[:, t] = np.where(planted[:, t], 0.0, np.minimum(last + 1, 100))
         self.free[rows] = last
         return swing_clearance(speed, free, descent)
 
@@ -380,6 +392,10 @@ class PhysicsFilter:
         if not self.lift[rows].any() and not (flagged & ~planted).any():
             return planted, clearance  # nothing dragged: nothing to let down
         lift = self.lift[rows]
+        if jit_enabled():
+            planted, clearance = _loops().settle_frames(flagged, planted, clearance, lift, SWING_RISE)
+            self.lift[rows] = lift
+            return planted, clearance
         for t in range(planted.shape[1]):
             dragged = flagged[:, t] & ~planted[:, t]
             settling = planted[:, t] & (lift > 0.0)
@@ -407,6 +423,15 @@ class PhysicsFilter:
         # Frames in the air at the end: a stretch that fills the new frames continues the past's.
         trailing = np.where(flight.all(axis=1), m, np.argmin(flight[:, ::-1], axis=1))
         self.airborne[rows] = np.where(trailing == m, self.airborne[rows] + trailing, trailing)
+
+
+def _loops() -> Any:
+    """:mod:`motion_env.generation.physics_jit`, imported on first use (numba compiles it once per
+    machine, and says so)."""
+    from motion_env.generation import physics_jit as module
+
+    note_first_compile(module.release_frames, "the physics stage's frame loops")
+    return module
 
 
 def _lifting_off(planted: np.ndarray) -> np.ndarray:

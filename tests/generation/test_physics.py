@@ -446,3 +446,42 @@ def test_the_flat_ankle_height_is_learnt_from_many_frames_not_a_first_token() ->
     many = 10 * FLAT_ANKLE_PRIOR
     later = f._flat_ankle(np.array([0]), token(many, 0.10), np.ones((1, many, 4), bool))[0]
     assert abs(later - 0.10) < 0.1 * abs(0.10 - FLAT_ANKLE_HEIGHT) + 0.002
+
+
+def test_the_compiled_frame_loops_give_what_numpy_gives(monkeypatch: pytest.MonkeyPatch) -> None:
+    """physics_jit's four loops against the numpy ones, to the bit: three characters (a jump, a
+    drifting body with noisy contacts whose feet get dragged, a standing one floating up), streamed
+    in tokens of 1-6 frames; every output frame and every carried state equal."""
+    from motion_env.generation import physics_jit
+    from motion_env.models import jit_cache
+
+    rng = np.random.default_rng(1)
+    jump, jump_contacts = _jump()
+    drift = _standing(60) + rng.normal(0.0, 0.02, (60, 22, 3)).astype(np.float32)
+    drift[..., 2] += 0.05 * np.arange(60, dtype=np.float32)[:, None]  # flagged feet dragged along
+    drift_contacts = (rng.random((60, 4)) < 0.7).astype(np.float32)
+    floating = _standing(60)
+    floating[..., 1] += np.linspace(0.0, 0.1, 60, dtype=np.float32)[:, None]
+    joints = np.stack([jump, drift, floating])
+    floating_contacts = np.ones((60, 4), np.float32)
+    floating_contacts[45:] = 0.0  # its feet free at the end: the counts carry on
+    contacts = np.stack([jump_contacts, drift_contacts, floating_contacts])
+    calls = []
+    for name in physics_jit.__all__:
+        loop = getattr(physics_jit, name)
+        counted = lambda *a, _loop=loop, _name=name: calls.append(_name) or _loop(*a)  # noqa: E731
+        monkeypatch.setattr(physics_jit, name, counted)
+    outputs, states = {}, {}
+    for compiled in (True, False):
+        monkeypatch.setattr(jit_cache, "_enabled", compiled)
+        stage, parts, start = PhysicsFilter(3), [], 0
+        for size in (1, 3, 4, 6, 4, 2, 4, 4, 8, 4, 4, 4, 4, 4, 4):
+            frames = slice(start, start + size)
+            parts.append(stage.apply_rows(np.arange(3), joints[:, frames], contacts[:, frames]))
+            start += size
+        outputs[compiled] = np.concatenate(parts, axis=1)
+        states[compiled] = [getattr(stage, k).copy() for k in ("pull", "floating", "free", "lift", "past")]
+    assert set(calls) == set(physics_jit.__all__)  # every compiled loop ran
+    np.testing.assert_array_equal(outputs[True], outputs[False])
+    for got, want in zip(states[True], states[False], strict=True):
+        np.testing.assert_array_equal(got, want)
