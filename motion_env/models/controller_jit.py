@@ -29,6 +29,7 @@ import numpy as np
 from numba import njit
 
 from motion_env.models.jit_cache import note_first_compile
+from motion_env.models.jit_math import gelu
 
 __all__ = ["JitRollout", "rollout"]
 
@@ -97,17 +98,6 @@ def rollout(
             bool(trace),
         )
     )
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _gelu(x: np.ndarray) -> np.ndarray:
-    """torch's exact GELU, in place on a float32 (B, N) array."""
-    half, one, root = np.float32(0.5), np.float32(1.0), np.float32(1.0 / math.sqrt(2.0))
-    for i in range(x.shape[0]):
-        for j in range(x.shape[1]):
-            v = x[i, j]
-            x[i, j] = v * half * (one + np.float32(math.erf(v * root)))
-    return x
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -195,7 +185,7 @@ def _rollout(  # noqa: PLR0913, PLR0915 (one compiled loop: the parameters are t
                     x[b, j : j + 9] = zero
             for j in range(3):
                 x[b, last_in + j] = vel[b, j] * half
-        z = _gelu(_gelu(x @ w1 + b1) @ w2 + b2)  # the input MLP
+        z = gelu(gelu(x @ w1 + b1) @ w2 + b2)  # the input MLP
         gi, gh = z @ w_ih + b_ih, hidden @ w_hh + b_hh  # the GRU cell (gates reset, update, new)
         for b in range(rows):
             for j in range(n_hidden):
@@ -203,7 +193,7 @@ def _rollout(  # noqa: PLR0913, PLR0915 (one compiled loop: the parameters are t
                 update = _sigmoid(gi[b, n_hidden + j] + gh[b, n_hidden + j])
                 new = f32(math.tanh(gi[b, 2 * n_hidden + j] + reset * gh[b, 2 * n_hidden + j]))
                 hidden[b, j] = new + update * (hidden[b, j] - new)
-        raw = _gelu(np.concatenate((hidden, z), axis=1) @ w3 + b3) @ w4 + b4  # the output MLP
+        raw = gelu(np.concatenate((hidden, z), axis=1) @ w3 + b3) @ w4 + b4  # the output MLP
         for b in range(rows):  # the arrive gating and the integration
             step_x, step_z, turn = raw[b, 0] * step_scale, raw[b, 1] * step_scale, raw[b, 2] * turn_scale
             if final[b]:

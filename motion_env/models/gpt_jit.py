@@ -22,6 +22,8 @@ import math
 import numpy as np
 from numba import njit
 
+from motion_env.models.jit_math import gelu
+
 __all__ = ["step"]
 
 
@@ -45,17 +47,6 @@ def _normed(x: np.ndarray, eps: np.float32) -> np.ndarray:
         for j in range(width):
             out[r, j] = out[r, j] / norm
     return out
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _gelu(x: np.ndarray) -> np.ndarray:
-    """torch's exact GELU, in place on a float32 (R, N) array."""
-    half, one, root = np.float32(0.5), np.float32(1.0), np.float32(1.0 / math.sqrt(2.0))
-    for i in range(x.shape[0]):
-        for j in range(x.shape[1]):
-            v = x[i, j]
-            x[i, j] = v * half * (one + np.float32(math.erf(v * root)))
-    return x
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -104,5 +95,5 @@ def step(  # noqa: PLR0913 (one compiled step: the parameters are its arrays)
                         acc += scores[j] * v_buf[r, h, j, d]
                     y[r, h * hd + d] = acc / total
         x = x + (y @ proj[i] + proj_b[i])
-        x = x + (_gelu(_normed(x, eps) @ fc[i] + fc_b[i]) @ out[i] + out_b[i])
+        x = x + (gelu(_normed(x, eps) @ fc[i] + fc_b[i]) @ out[i] + out_b[i])
     return _normed(x, eps) @ head + head_b
