@@ -321,35 +321,33 @@ class FootPinner:
             constants = (FOOT_GLIDE, FOOT_CREEP_RATE, FOOT_CREEP, FOOT_MAX_OFFSET, FOOT_BLEND)
             state = (pin, glide, offset, released, since)  # updated in place
             offsets = pin_frames(held, fresh, shown, fresh_glide, *state, *constants)
-            return self._keep(rows, kinds, pins, pin, glide, offset, released, since, both, offsets)
-        offsets = np.zeros(kinds.shape + (2,))
-        for t in range(joints.shape[1]):
-            h, f, xz = held[:, t], fresh[:, t], shown[:, t]  # (R, legs), (R, legs), (R, legs, 2)
-            since = np.where(h, 0, since + 1)
-            # A held pin glides on by the glide it has (which then halves), a fresh one starts
-            # where its foot is shown now, with the correction the leg had.
-            target = np.where(f[..., None], xz + offset, pin + glide)
-            held_glide = np.where(f[..., None], fresh_glide[:, t], glide * FOOT_GLIDE)
-            glide = np.where(h[..., None], held_glide, glide)  # (a free leg's glide is never read)
-            moved = target - xz
-            dist = vector_norm(moved)
-            creep = np.where(f, 0.0, np.minimum(FOOT_CREEP_RATE * dist, FOOT_CREEP))
-            moved = moved * (1.0 - creep / np.maximum(dist, 1e-12))[..., None]
-            norm = vector_norm(moved)
-            far = np.where(norm > FOOT_MAX_OFFSET, FOOT_MAX_OFFSET / np.maximum(norm, 1e-12), 1.0)
-            moved = moved * far[..., None]
-            cut = h & check[:, t]
-            for leg in np.nonzero(cut.any(axis=0))[0]:
-                at = np.nonzero(cut[:, leg])[0]
-                moved[at, leg] *= ankle_room(joints[at, t], leg, moved[at, leg])[:, None]
-            pin = np.where(h[..., None], xz + moved, np.nan)  # the pin slides with the foot where it is cut
-            released = np.where(h[..., None], moved, released)
-            offset = offsets[:, t] = np.where(h[..., None], moved, released * release_fade(since)[..., None])
-        return self._keep(rows, kinds, pins, pin, glide, offset, released, since, both, offsets)
-
-    def _keep(self, rows, kinds, pins, pin, glide, offset, released, since, both, offsets) -> np.ndarray:  # noqa: PLR0913
-        """:meth:`_pin`'s end: the state the frames leave, kept for the next frames of `rows`;
-        returns `offsets`."""
+        else:
+            offsets = np.zeros(kinds.shape + (2,))
+            for t in range(joints.shape[1]):
+                h, f, xz = held[:, t], fresh[:, t], shown[:, t]  # (R, legs), (R, legs), (R, legs, 2)
+                since = np.where(h, 0, since + 1)
+                # A held pin glides on by the glide it has (which then halves), a fresh one starts
+                # where its foot is shown now, with the correction the leg had.
+                target = np.where(f[..., None], xz + offset, pin + glide)
+                held_glide = np.where(f[..., None], fresh_glide[:, t], glide * FOOT_GLIDE)
+                glide = np.where(h[..., None], held_glide, glide)  # (a free leg's glide is never read)
+                moved = target - xz
+                dist = vector_norm(moved)
+                creep = np.where(f, 0.0, np.minimum(FOOT_CREEP_RATE * dist, FOOT_CREEP))
+                moved = moved * (1.0 - creep / np.maximum(dist, 1e-12))[..., None]
+                norm = vector_norm(moved)
+                far = np.where(norm > FOOT_MAX_OFFSET, FOOT_MAX_OFFSET / np.maximum(norm, 1e-12), 1.0)
+                moved = moved * far[..., None]
+                cut = h & check[:, t]
+                for leg in np.nonzero(cut.any(axis=0))[0]:
+                    at = np.nonzero(cut[:, leg])[0]
+                    moved[at, leg] *= ankle_room(joints[at, t], leg, moved[at, leg])[:, None]
+                # The pin slides with the foot where it is cut.
+                pin = np.where(h[..., None], xz + moved, np.nan)
+                released = np.where(h[..., None], moved, released)
+                offset = offsets[:, t] = np.where(
+                    h[..., None], moved, released * release_fade(since)[..., None]
+                )
         last = kinds[:, -1]  # the pin of the last frame's kind is kept, the other is none
         for kind in (0, 1):
             pins[:, :, kind] = np.where((last == kind)[..., None], pin, np.nan)

@@ -279,30 +279,18 @@ class PathController(nn.Module):
         return replace(state, queue=queue)
 
     # ------------------------------------------------------------------ the network
-    def waypoint_features(self, state: ControllerState) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Features of the next `num_slots` waypoints relative to the character.
-
-        Returns:
-            (features (B, num_slots * 9), offset to the current target (B, 2) in the heading frame,
-            final (B,) bool: the current target is the last waypoint).
-            Per slot: the offset (lateral, forward) / max(dist, 1) (a direction far away, the
-            offset in metres up close), log(1 + dist), timed flag, time to go (s), the speed a
-            timed waypoint asks for (m/s), is-last flag, valid flag (any route at all), and
-            log(1 + the distance from the previous slot) for the shape of the route ahead.
-            The route's part (:func:`route_view`) changes only with the queue; a rollout makes
-            it once per waypoint passed, :func:`slot_features` every frame.
-        """
-        view = route_view(state.waypoints, state.count, state.queue, self.config.num_slots)
-        frame = state.frame.unsqueeze(1).float()
-        const = TORCH.constants(self.config.step_scale, self.config.turn_scale, state.pos.dtype)
-        feats, target = slot_features(view, state.pos, state.theta, frame, self.config.max_time_to_go, const)
-        return feats, target, view.final
-
     def step_inputs(self, state: ControllerState, ops: TorchOps = TORCH) -> Array:
         """(B, ``step_input_dim``) what the network reads at `state`'s frame: the captions'
         projection, the waypoint features and the last velocity (halved), as :meth:`_frame` builds
         them inline (for the look-ahead head, :mod:`motion_env.models.lookahead`), in `ops`'s
-        arrays (:meth:`frame_ops`: numpy for a few characters, at a third of torch's cost)."""
+        arrays (:meth:`frame_ops`: numpy for a few characters, at a third of torch's cost).
+
+        The waypoint features, per slot of the next `num_slots` waypoints: the offset (lateral,
+        forward) / max(dist, 1) (a direction far away, the offset in metres up close), log(1 +
+        dist), timed flag, time to go (s), the speed a timed waypoint asks for (m/s), is-last flag,
+        valid flag (any route at all), and log(1 + the distance from the previous slot) for the
+        shape of the route ahead. The route's part (:func:`route_view`) changes only with the
+        queue; a roll-out makes it once per waypoint passed, :func:`slot_features` every frame."""
         c = self.config
         view = ops.view(route_view(state.waypoints, state.count, state.queue, c.num_slots))
         frame = ops.array(state.frame.unsqueeze(1).float())

@@ -106,14 +106,107 @@ def _sigmoid(x: np.float32) -> np.float32:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _rollout(  # noqa: PLR0913, PLR0915 (one compiled loop: the parameters are the frame's arrays)
+def _next_queue(waypoints, count, queue, pos, frame, arrive):
+    """Each character's target moved past the waypoints frame `frame` (B,) reached (timed: its
+    frame; untimed: within `arrive`), never past its last one (next_queue), in place."""
+    for b in range(pos.shape[0]):
+        q = queue[b]
+        while q < count[b] - 1:
+            t = waypoints[b, q, 2]
+            if math.isnan(t):
+                dx, dz = waypoints[b, q, 0] - pos[b, 0], waypoints[b, q, 1] - pos[b, 1]
+                if not np.float32(math.sqrt(dx * dx + dz * dz)) < arrive:
+                    break
+            elif not t <= np.float32(frame[b]):
+                break
+            q += 1
+        queue[b] = q
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _waypoint_inputs(
+    x, at, waypoints, count, queue, pos, theta, frame, num_slots, fps, max_ttg, target, final
+):
+    """The waypoint features of each character (slot_features) written into x[:, at:], its offset
+    to the current target (heading frame) into `target` and whether that is its last into `final`."""
+    f32 = np.float32
+    quarter, one, zero = f32(0.25), f32(1.0), f32(0.0)
+    for b in range(pos.shape[0]):
+        c, s = f32(math.cos(theta[b])), f32(math.sin(theta[b]))
+        last = count[b] - 1
+        has_route = count[b] > 0
+        final[b] = has_route and queue[b] == last
+        now = f32(frame[b])
+        prev_x, prev_z = pos[b, 0], pos[b, 1]
+        for k in range(num_slots):
+            slot = min(queue[b] + k, max(last, 0))
+            wx, wz, wt = waypoints[b, slot, 0], waypoints[b, slot, 1], waypoints[b, slot, 2]
+            dx, dz = wx - pos[b, 0], wz - pos[b, 1]
+            lateral, forward = dx * c - dz * s, dx * s + dz * c
+            dist = f32(math.sqrt(lateral * lateral + forward * forward))
+            timed = not math.isnan(wt)
+            ttg = min(max((wt - now) / fps, zero), max_ttg) if timed else zero
+            speed = min(dist / (ttg + quarter), f32(10.0)) if timed else zero
+            sx, sz = wx - prev_x, wz - prev_z
+            seg = f32(math.sqrt(sx * sx + sz * sz))
+            prev_x, prev_z = wx, wz
+            if k == 0:
+                target[b, 0], target[b, 1] = lateral, forward
+            j = at + 9 * k
+            if not has_route:
+                x[b, j : j + 9] = zero
+                continue
+            x[b, j], x[b, j + 1], x[b, j + 2] = (
+                lateral / max(dist, one),
+                forward / max(dist, one),
+                f32(math.log1p(dist)),
+            )
+            x[b, j + 3], x[b, j + 4], x[b, j + 5] = one if timed else zero, ttg, speed
+            x[b, j + 6], x[b, j + 7], x[b, j + 8] = one if slot == last else zero, one, f32(math.log1p(seg))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _gru_cell(z, hidden, w_ih, w_hh, b_ih, b_hh):
+    """torch.gru_cell's update of `hidden` (gates reset, update, new), in place."""
+    n = hidden.shape[1]
+    gi, gh = z @ w_ih + b_ih, hidden @ w_hh + b_hh
+    for b in range(hidden.shape[0]):
+        for j in range(n):
+            reset = _sigmoid(gi[b, j] + gh[b, j])
+            update = _sigmoid(gi[b, n + j] + gh[b, n + j])
+            new = np.float32(math.tanh(gi[b, 2 * n + j] + reset * gh[b, 2 * n + j]))
+            hidden[b, j] = new + update * (hidden[b, j] - new)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _integrate(raw, pos, theta, vel, target, final, step_scale, turn_scale, arrive, seek, fps):
+    """The network's step `raw` (B, 3) gated near the last waypoint and integrated into pos,
+    theta and vel, in place."""
+    half, one = np.float32(0.5), np.float32(1.0)
+    for b in range(pos.shape[0]):
+        step_x, step_z, turn = raw[b, 0] * step_scale, raw[b, 1] * step_scale, raw[b, 2] * turn_scale
+        if final[b]:  # arrive gating: a direct approach with zero turn
+            tx, tz = target[b, 0], target[b, 1]
+            gate = min(np.float32(math.sqrt(tx * tx + tz * tz)) / arrive, one) ** 2
+            step_x = gate * step_x + (one - gate) * seek * tx
+            step_z = gate * step_z + (one - gate) * seek * tz
+            turn = gate * turn
+        mid = theta[b] + turn * half
+        c, s = np.float32(math.cos(mid)), np.float32(math.sin(mid))
+        pos[b, 0] = pos[b, 0] + (step_x * c + step_z * s)
+        pos[b, 1] = pos[b, 1] + (-step_x * s + step_z * c)
+        theta[b] = theta[b] + turn
+        vel[b, 0], vel[b, 1], vel[b, 2] = step_x * fps, step_z * fps, turn * fps
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _rollout(  # noqa: PLR0913 (one compiled loop: the parameters are the frame's arrays)
     w1, b1, w2, b2, w_ih, w_hh, b_ih, b_hh, w3, b3, w4, b4,
     text, waypoints, count, queue, pos, theta, vel, hidden, frame, num_steps,
     num_slots, max_time_to_go, step_scale, turn_scale, arrive_radius, seek_rate, fps, trace,
 ):  # fmt: skip
     f32 = np.float32
     rows, width, n_hidden = pos.shape[0], text.shape[1], hidden.shape[1]
-    half, quarter, one, zero = f32(0.5), f32(0.25), f32(1.0), f32(0.0)
     step_scale, turn_scale, fps = f32(step_scale), f32(turn_scale), f32(fps)
     arrive, seek, max_ttg = f32(arrive_radius), f32(seek_rate), f32(max_time_to_go)
     roots = np.empty((rows, num_steps, 3), f32)
@@ -121,91 +214,26 @@ def _rollout(  # noqa: PLR0913, PLR0915 (one compiled loop: the parameters are t
     vels = np.empty((rows, traced, 3), f32)
     hiddens = np.empty((rows, traced, n_hidden), f32)
     queues = np.empty((rows, traced), np.int64)
-    x = np.zeros((rows, w1.shape[0]), f32)
+    x = np.zeros((rows, w1.shape[0]), f32)  # the network's input: caption, waypoints, last step
     x[:, :width] = text
-    feats = width  # where the waypoint features start in x
-    last_in = feats + num_slots * 9  # the last velocity's columns
+    last_in = width + num_slots * 9  # the last velocity's columns
     target = np.zeros((rows, 2), f32)  # offset to the current target, heading frame
     final = np.zeros(rows, np.bool_)
     for n in range(num_steps + 1):
         if n:
-            for b in range(rows):  # the queue past what frame n reached (next_queue)
-                now = f32(frame[b] + n)
-                q = queue[b]
-                while q < count[b] - 1:
-                    t = waypoints[b, q, 2]
-                    if math.isnan(t):
-                        dx, dz = waypoints[b, q, 0] - pos[b, 0], waypoints[b, q, 1] - pos[b, 1]
-                        if not f32(math.sqrt(dx * dx + dz * dz)) < arrive:
-                            break
-                    elif not t <= now:
-                        break
-                    q += 1
-                queue[b] = q
+            _next_queue(waypoints, count, queue, pos, frame + n, arrive)
+            for b in range(rows):
                 roots[b, n - 1, 0], roots[b, n - 1, 1], roots[b, n - 1, 2] = pos[b, 0], pos[b, 1], theta[b]
                 if trace:
-                    vels[b, n - 1] = vel[b]
-                    hiddens[b, n - 1] = hidden[b]
-                    queues[b, n - 1] = q
+                    vels[b, n - 1], hiddens[b, n - 1], queues[b, n - 1] = vel[b], hidden[b], queue[b]
         if n == num_steps:
             break
-        for b in range(rows):  # the inputs: waypoint features (slot_features) and the last velocity
-            c, s = f32(math.cos(theta[b])), f32(math.sin(theta[b]))
-            last = count[b] - 1
-            has_route = count[b] > 0
-            final[b] = has_route and queue[b] == last
-            now = f32(frame[b] + n)
-            prev_x, prev_z = pos[b, 0], pos[b, 1]
-            for k in range(num_slots):
-                slot = min(queue[b] + k, max(last, 0))
-                wx, wz, wt = waypoints[b, slot, 0], waypoints[b, slot, 1], waypoints[b, slot, 2]
-                dx, dz = wx - pos[b, 0], wz - pos[b, 1]
-                lateral, forward = dx * c - dz * s, dx * s + dz * c
-                dist = f32(math.sqrt(lateral * lateral + forward * forward))
-                timed = not math.isnan(wt)
-                ttg = min(max((wt - now) / fps, zero), max_ttg) if timed else zero
-                speed = min(dist / (ttg + quarter), f32(10.0)) if timed else zero
-                sx, sz = wx - prev_x, wz - prev_z
-                seg = f32(math.sqrt(sx * sx + sz * sz))
-                prev_x, prev_z = wx, wz
-                if k == 0:
-                    target[b, 0], target[b, 1] = lateral, forward
-                j = feats + 9 * k
-                if has_route:
-                    x[b, j] = lateral / max(dist, one)
-                    x[b, j + 1] = forward / max(dist, one)
-                    x[b, j + 2] = f32(math.log1p(dist))
-                    x[b, j + 3] = one if timed else zero
-                    x[b, j + 4] = ttg
-                    x[b, j + 5] = speed
-                    x[b, j + 6] = one if slot == last else zero
-                    x[b, j + 7] = one
-                    x[b, j + 8] = f32(math.log1p(seg))
-                else:
-                    x[b, j : j + 9] = zero
-            for j in range(3):
-                x[b, last_in + j] = vel[b, j] * half
+        _waypoint_inputs(
+            x, width, waypoints, count, queue, pos, theta, frame + n, num_slots, fps, max_ttg, target, final
+        )
+        x[:, last_in:] = vel * f32(0.5)
         z = gelu(gelu(x @ w1 + b1) @ w2 + b2)  # the input MLP
-        gi, gh = z @ w_ih + b_ih, hidden @ w_hh + b_hh  # the GRU cell (gates reset, update, new)
-        for b in range(rows):
-            for j in range(n_hidden):
-                reset = _sigmoid(gi[b, j] + gh[b, j])
-                update = _sigmoid(gi[b, n_hidden + j] + gh[b, n_hidden + j])
-                new = f32(math.tanh(gi[b, 2 * n_hidden + j] + reset * gh[b, 2 * n_hidden + j]))
-                hidden[b, j] = new + update * (hidden[b, j] - new)
+        _gru_cell(z, hidden, w_ih, w_hh, b_ih, b_hh)
         raw = gelu(np.concatenate((hidden, z), axis=1) @ w3 + b3) @ w4 + b4  # the output MLP
-        for b in range(rows):  # the arrive gating and the integration
-            step_x, step_z, turn = raw[b, 0] * step_scale, raw[b, 1] * step_scale, raw[b, 2] * turn_scale
-            if final[b]:
-                tx, tz = target[b, 0], target[b, 1]
-                gate = min(f32(math.sqrt(tx * tx + tz * tz)) / arrive, one) ** 2
-                step_x = gate * step_x + (one - gate) * seek * tx
-                step_z = gate * step_z + (one - gate) * seek * tz
-                turn = gate * turn
-            mid = theta[b] + turn * half
-            c, s = f32(math.cos(mid)), f32(math.sin(mid))
-            pos[b, 0] = pos[b, 0] + (step_x * c + step_z * s)
-            pos[b, 1] = pos[b, 1] + (-step_x * s + step_z * c)
-            theta[b] = theta[b] + turn
-            vel[b, 0], vel[b, 1], vel[b, 2] = step_x * fps, step_z * fps, turn * fps
+        _integrate(raw, pos, theta, vel, target, final, step_scale, turn_scale, arrive, seek, fps)
     return pos, theta, vel, hidden, queue, roots, vels, hiddens, queues

@@ -24,7 +24,7 @@ import torch
 from torch import nn
 
 from motion_env.models.frame_ops import NumpyOps
-from motion_env.models.jit_cache import jit_enabled
+from motion_env.models.jit_cache import jit_enabled, note_first_compile
 
 # (The GPT is typed as a module here: models.gpt imports this one, not the other way round.)
 KV = list[tuple[torch.Tensor, torch.Tensor]]
@@ -226,8 +226,7 @@ class NumpyStep:
         mask = np.where(seen, np.float32(0.0), np.float32(-np.inf))  # (R, L+1)
         if not (gpt.compiled and jit_enabled()):
             return self._blocks(gpt, x[:, None], mask[:, None, None], past)
-        from motion_env.models.gpt_jit import step
-        from motion_env.models.jit_cache import note_first_compile
+        from motion_env.models.gpt_jit import step  # numba is imported only when a step runs compiled
 
         note_first_compile(step, "the GPT's token step")
         kv, start = past

@@ -4,7 +4,7 @@ The stream (:mod:`motion_env.generation.streaming`) conditions each token on the
 second (``path_horizon`` = 20 frames) ahead of the frames it decodes. With the controller alone,
 a new caption or route means rolling that second out again, 21 sequential GRU steps. The head
 predicts the same window from the controller's state at one frame in one MLP pass: its GRU state,
-its caption projection, its waypoint features (:meth:`PathController.waypoint_features`) and its
+its caption projection, its waypoint features (:meth:`PathController.step_inputs`) and its
 last velocity. It is distilled from the controller's own roll-outs
 (:mod:`motion_env.training.lookahead`), so it says where the controller would go, not where the
 take went.
