@@ -24,6 +24,7 @@ __all__ = [
     "FOOT_MAX_OFFSET",
     "FOOT_SOFTNESS",
     "FOOT_STRETCH",
+    "HINT_WEIGHT",
     "TOE_HINT_LENGTH",
     "FootPinner",
     "ankle_room",
@@ -68,6 +69,8 @@ FOOT_SOFTNESS = 0.02
 # Metres of horizontal ankle-to-toe length (a flat foot's is about 14 cm) from which the toes
 # bend a re-solved knee with their whole weight (two_bone_ik's hint_length).
 TOE_HINT_LENGTH = 0.1
+# Metres of bias a bend hint gives a re-solved knee (two_bone_ik's hint_weight).
+HINT_WEIGHT = 0.05
 # The narrowest shin-foot angle (degrees) a pinned leg is re-solved to, unless the decoded pose is
 # narrower (ankle_room); real takes' angles: 1st percentile 58, 5th 78, median 114 (the naturalness
 # takes). 70 also passed the train split's jumps but failed a val climb; 60 neither.
@@ -163,7 +166,7 @@ def two_bone_ik(
     ankle: np.ndarray,
     target: np.ndarray,
     bend_hint: np.ndarray | None = None,
-    hint_weight: float = 0.05,
+    hint_weight: float = HINT_WEIGHT,
     hint_length: float = 0.0,
     hint_fill: float = 0.0,
 ) -> tuple:

@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from motion_env.generation.feet import TOE_HINT_LENGTH, two_bone_ik
-from motion_env.motion.mass import centre_of_mass
+from motion_env.generation.feet import HINT_WEIGHT, TOE_HINT_LENGTH, two_bone_ik
+from motion_env.models.jit_cache import jit_enabled, note_first_compile
+from motion_env.motion.mass import COM_WEIGHTS, centre_of_mass
 from motion_env.motion.rotations import vector_norm
 from motion_env.motion.skeleton import LEGS
 
@@ -193,7 +194,29 @@ def place_body(
 ) -> np.ndarray:
     """The body (n, 22, 3) shifted vertically so that its centre of mass is at `heights` (n,), its
     feet grounded (:func:`ground_feet`; `down`, `clearance`, `pull`: (n, 2), `flat_ankle`: (n,)), no
-    joint below the floor."""
+    joint below the floor. Compiled (:mod:`motion_env.generation.ground_jit`) where numba runs."""
+    if jit_enabled():
+        from motion_env.generation.ground_jit import place_frames
+
+        note_first_compile(place_frames, "the body's placement on the floor")
+        n = len(joints)
+        return place_frames(
+            np.asarray(joints, dtype=np.float64),
+            np.asarray(heights, dtype=np.float64),
+            np.asarray(down, dtype=bool),
+            np.asarray(clearance, dtype=np.float64),
+            np.broadcast_to(np.asarray(flat_ankle, dtype=np.float64), (n,)),
+            np.zeros((n, 2)) if pull is None else np.asarray(pull, dtype=np.float64),
+            pull is not None,
+            COM_WEIGHTS,
+            np.asarray(LEGS),
+            _PASSES,
+            _PLACE_TOLERANCE,
+            np.array([HEEL_BACK, TOE_FRONT, SOLE_RADIUS]),
+            MAX_STRETCH,
+            HINT_WEIGHT,
+            TOE_HINT_LENGTH,
+        )
     shift = heights - centre_of_mass(joints)[:, 1]
     out = np.array(joints, dtype=np.float64)
     todo = np.arange(len(joints))  # frames not placed within _PLACE_TOLERANCE yet: each on its own

@@ -485,3 +485,45 @@ def test_the_compiled_frame_loops_give_what_numpy_gives(monkeypatch: pytest.Monk
     np.testing.assert_array_equal(outputs[True], outputs[False])
     for got, want in zip(states[True], states[False], strict=True):
         np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("with_pull", [True, False])
+def test_the_compiled_placement_gives_what_numpy_gives(
+    monkeypatch: pytest.MonkeyPatch, with_pull: bool
+) -> None:
+    """ground_jit.place_frames against place_body's numpy passes, to the bit: standing, jumping and
+    noisy bodies asked to stand, float or sink (planted, free and pulled feet; straight legs with
+    no bend plane, shins folded back along the thighs)."""
+    from motion_env.generation import ground, ground_jit
+    from motion_env.models import jit_cache
+
+    rng = np.random.default_rng(3)
+    jump, _ = _jump()
+    noisy = _standing(60) + rng.normal(0.0, 0.03, (60, 22, 3))
+    joints = np.concatenate([_standing(20), jump, noisy]).astype(np.float64)
+    straight = joints[:4].copy()  # straight legs, toes pointing down: no bend plane, no hint
+    for hip, knee, ankle, toe in LEGS:
+        straight[:, knee] = straight[:, hip] + [0.1, -0.4, 0.0]
+        straight[:, ankle] = straight[:, hip] + [0.2, -0.8, 0.0]
+        straight[:, toe] = straight[:, ankle] + [0.0, -0.05, 0.0]
+    folded = joints[:4].copy()  # shins folded back up along the thighs
+    for hip, knee, ankle, _ in LEGS:
+        folded[:, ankle] = folded[:, hip] + 0.5 * (folded[:, knee] - folded[:, hip])
+    joints = np.concatenate([joints, straight, folded])
+    n = len(joints)
+    heights = centre_of_mass(joints)[:, 1] + rng.uniform(-0.15, 0.15, n)
+    down = rng.random((n, 2)) < 0.6
+    clearance = rng.uniform(0.0, SWING_CLEARANCE, (n, 2))
+    flat_ankle = rng.uniform(0.05, 0.11, n)
+    pull = np.where(rng.random((n, 2)) < 0.5, rng.uniform(0.0, 0.05, (n, 2)), 0.0) if with_pull else None
+    calls = []
+    compiled = ground_jit.place_frames
+    monkeypatch.setattr(ground_jit, "place_frames", lambda *a: calls.append(1) or compiled(*a))
+    outputs = {}
+    for on in (True, False):
+        monkeypatch.setattr(jit_cache, "_enabled", on)
+        outputs[on] = ground.place_body(joints, heights, down, clearance, flat_ankle, pull)
+    assert calls  # the compiled loop ran
+    moved = np.abs(outputs[False] - joints).max(axis=(1, 2))
+    assert (moved > 1e-3).mean() > 0.5  # the case is not trivial: most frames were placed
+    np.testing.assert_array_equal(outputs[True], outputs[False])
