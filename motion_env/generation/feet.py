@@ -186,8 +186,18 @@ def two_bone_ik(
     straight but short, which must bend far to reach the target, bends the hint's way instead of
     the way a few millimetres of noise put its middle joint.
 
-    All (N, 3); returns (new knee, new ankle).
+    All (N, 3); returns (new knee, new ankle). Compiled (:mod:`motion_env.generation.ik_jit`)
+    where numba runs and every array is float64.
     """
+    arrays = (hip, knee, ankle, target) + (() if bend_hint is None else (bend_hint,))
+    if jit_enabled() and all(a.dtype == np.float64 and a.ndim == 2 for a in arrays):
+        from motion_env.generation.ik_jit import solve_rows
+
+        note_first_compile(solve_rows, "the two-bone IK")
+        hint = target if bend_hint is None else bend_hint  # (not read without a hint)
+        return solve_rows(
+            hip, knee, ankle, target, hint, bend_hint is not None, hint_weight, hint_length, hint_fill
+        )
     l1 = vector_norm(knee - hip)
     l2 = vector_norm(ankle - knee)
     to = target - hip

@@ -219,6 +219,41 @@ def test_foot_pinner_leaves_free_motion_alone(humanml3d_sample) -> None:
     assert math.isclose(foot_skating_ratio(lifted), 0.0)
 
 
+@pytest.mark.parametrize("hint", ["none", "toes", "fill"])
+def test_the_compiled_two_bone_ik_gives_what_numpy_gives(monkeypatch: pytest.MonkeyPatch, hint: str) -> None:
+    """ik_jit against two_bone_ik's numpy operations, to the bit: bent, straight and folded limbs,
+    targets near, out of reach and straight across the root from the limb's end (the half turn),
+    with no hint, a hint, and a hint that fills the bend a limb does not show."""
+    from motion_env.generation import ik_jit
+    from motion_env.models import jit_cache
+
+    rng = np.random.default_rng(5)
+    n = 200
+    hip = rng.normal(0.0, 0.1, (n, 3)) + [0.0, 0.9, 0.0]
+    knee = hip + rng.normal(0.0, 0.1, (n, 3)) + [0.0, -0.4, 0.0]
+    ankle = knee + rng.normal(0.0, 0.1, (n, 3)) + [0.0, -0.4, 0.0]
+    target = ankle + rng.normal(0.0, 0.3, (n, 3))
+    knee[:20] = hip[:20] + 0.5 * (ankle[:20] - hip[:20])  # straight
+    ankle[20:40] = hip[20:40] + 0.3 * (knee[20:40] - hip[20:40])  # folded back
+    # Targets straight across the root from the limb's end: hanging down, and held out sideways.
+    across = ((slice(40, 50), [0.0, -1.0, 0.0]), (slice(50, 60), [-1.0, 0.0, 0.0]))
+    for rows, axis in (*across, (slice(60, 70), [-0.6, -0.64, -0.48])):
+        knee[rows] = hip[rows] + 0.4 * np.array(axis) + [0.02, 0.01, 0.03]
+        ankle[rows], target[rows] = hip[rows] + 0.8 * np.array(axis), hip[rows] - 0.5 * np.array(axis)
+    bend_hint = None if hint == "none" else rng.normal(0.0, 0.1, (n, 3))
+    fill = 1.0 if hint == "fill" else 0.0
+    calls = []
+    compiled = ik_jit.solve_rows
+    monkeypatch.setattr(ik_jit, "solve_rows", lambda *a: calls.append(1) or compiled(*a))
+    outputs = {}
+    for on in (True, False):
+        monkeypatch.setattr(jit_cache, "_enabled", on)
+        outputs[on] = two_bone_ik(hip, knee, ankle, target, bend_hint, hint_length=0.1, hint_fill=fill)
+    assert calls  # the compiled loop ran
+    for got, want in zip(outputs[True], outputs[False], strict=True):
+        np.testing.assert_array_equal(got, want)
+
+
 def test_two_bone_ik_keeps_a_nearly_straight_knee_bending_forward() -> None:
     # A running leg almost straight (knee 1 cm in front of the hip-ankle line), its ankle pulled
     # 25 cm forward and 10 cm up: the knee must stay in front (+z), not flip backwards.
