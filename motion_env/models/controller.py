@@ -292,6 +292,17 @@ class PathController(nn.Module):
         shape of the route ahead. The route's part (:func:`route_view`) changes only with the
         queue; a roll-out makes it once per waypoint passed, :func:`slot_features` every frame."""
         c = self.config
+        if ops is self._numpy and self.compiled and jit_enabled():
+            from motion_env.models.controller_jit import step_inputs
+
+            return step_inputs(
+                self._text_features(state.text).numpy(),
+                *(x.numpy() for x in (state.waypoints, state.count, state.queue, state.pos, state.theta)),
+                state.vel.numpy(),
+                state.frame.numpy(),
+                c.input_dim,
+                self._jit_constants(),
+            )
         view = ops.view(route_view(state.waypoints, state.count, state.queue, c.num_slots))
         frame = ops.array(state.frame.unsqueeze(1).float())
         const = ops.constants(c.step_scale, c.turn_scale, state.pos.dtype)
@@ -453,23 +464,24 @@ class PathController(nn.Module):
         vel, hidden = (ops.tensor(ops.stack(x, 1), state.pos) for x in (vels, hiddens))
         return new, Trace(roots, vel, hidden, torch.stack(queues, dim=1))
 
+    def _jit_constants(self) -> tuple[int, float, float, float, float, float, float]:
+        """The configuration's numbers the compiled loops read (:mod:`motion_env.models.controller_jit`)."""
+        c = self.config
+        return c.num_slots, c.max_time_to_go, c.step_scale, c.turn_scale, c.arrive_radius, c.seek_rate, FPS
+
     def _run_compiled(
         self, state: ControllerState, num_steps: int, trace: bool, weights: tuple[np.ndarray, ...]
     ) -> tuple[ControllerState, Trace]:
         """:meth:`run`'s frames as one compiled loop (:mod:`motion_env.models.controller_jit`)."""
         from motion_env.models.controller_jit import rollout
 
-        c = self.config
-        constants = (
-            c.num_slots, c.max_time_to_go, c.step_scale, c.turn_scale, c.arrive_radius, c.seek_rate, FPS
-        )  # fmt: skip
         out = rollout(
             weights,
             self._text_features(state.text).numpy(),
             *(x.numpy() for x in (state.waypoints, state.count, state.queue, state.pos, state.theta)),
             *(x.numpy() for x in (state.vel, state.hidden, state.frame)),
             num_steps,
-            constants,
+            self._jit_constants(),
             trace,
         )
         device = state.pos.device

@@ -31,7 +31,7 @@ from numba import njit
 from motion_env.models.jit_cache import note_first_compile
 from motion_env.models.jit_math import gelu
 
-__all__ = ["JitRollout", "rollout"]
+__all__ = ["JitRollout", "rollout", "step_inputs"]
 
 
 class JitRollout(NamedTuple):
@@ -98,6 +98,55 @@ def rollout(
             bool(trace),
         )
     )
+
+
+def step_inputs(
+    text: np.ndarray,
+    waypoints: np.ndarray,
+    count: np.ndarray,
+    queue: np.ndarray,
+    pos: np.ndarray,
+    theta: np.ndarray,
+    vel: np.ndarray,
+    frame: np.ndarray,
+    width: int,
+    constants: tuple[int, float, float, float, float, float, float],
+) -> np.ndarray:
+    """(B, width) what the network reads at the characters' current frame
+    (:meth:`PathController.step_inputs <motion_env.models.controller.PathController.step_inputs>`):
+    the captions' projection `text`, the waypoint features and the last velocity, halved, as the
+    roll-out builds its frame's input. The arrays are a state's (:func:`rollout`'s), `constants`
+    too."""
+    note_first_compile(_step_inputs, "the path controller's step inputs")
+    num_slots, max_time_to_go, *_, fps = constants
+    return _step_inputs(
+        np.ascontiguousarray(text, np.float32),
+        np.ascontiguousarray(waypoints, np.float32),
+        np.ascontiguousarray(count, np.int64),
+        np.ascontiguousarray(queue, np.int64),
+        np.ascontiguousarray(pos, np.float32),
+        np.ascontiguousarray(theta, np.float32),
+        np.ascontiguousarray(vel, np.float32),
+        np.ascontiguousarray(frame, np.int64),
+        int(width),
+        int(num_slots),
+        float(fps),
+        float(max_time_to_go),
+    )
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _step_inputs(text, waypoints, count, queue, pos, theta, vel, frame, width, num_slots, fps, max_ttg):
+    rows, f32 = pos.shape[0], np.float32
+    x = np.zeros((rows, width), f32)
+    x[:, : text.shape[1]] = text
+    target, final = np.zeros((rows, 2), f32), np.zeros(rows, np.bool_)  # (the roll-out's; unread)
+    _waypoint_inputs(
+        x, text.shape[1], waypoints, count, queue, pos, theta, frame, num_slots, f32(fps),
+        f32(max_ttg), target, final,
+    )  # fmt: skip
+    x[:, text.shape[1] + num_slots * 9 :] = vel * f32(0.5)
+    return x
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

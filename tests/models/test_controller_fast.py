@@ -12,6 +12,7 @@ import pytest
 import torch
 
 from motion_env.models.controller import ControllerConfig, ControllerState, PathController
+from motion_env.models.frame_ops import TORCH
 from motion_env.models.waypoint_features import from_heading_frame_torch, next_queue, to_heading_frame_torch
 from motion_env.motion.skeleton import FPS
 
@@ -261,3 +262,32 @@ def test_the_compiled_loop_traces_the_numpy_frames(batch: int, monkeypatch: pyte
     for got, want, name in pairs:
         np.testing.assert_allclose(got, want, rtol=0, atol=2e-5, err_msg=name)
     assert torch.equal(new.frame, state.frame + 120)
+
+
+def test_the_compiled_step_inputs_are_the_numpy_ones(monkeypatch: pytest.MonkeyPatch) -> None:
+    """controller_jit.step_inputs (the look-ahead head's inputs) against PathController.step_inputs
+    on numpy's operations, frame after frame of a roll-out over every kind of route, to float32
+    rounding; the numpy features do not run when it is compiled."""
+    from motion_env.models import controller as controller_module
+    from motion_env.models import jit_cache
+
+    batch = 6
+    model = _tiny(batch + 10, scale=1.0)
+    rng = np.random.default_rng(4)
+    routes = _routes(rng, batch)
+    with torch.no_grad():
+        starts = rng.normal(size=(batch, 3)).astype(np.float32)
+        state = model.init_state(torch.randn(batch, 16), routes, starts)
+        ops = model.frame_ops(batch)
+        assert ops is not TORCH
+        for _ in range(12):
+            state, _ = model.run(state, 7)
+            monkeypatch.setattr(jit_cache, "_enabled", False)
+            want = model.step_inputs(state, ops)
+            monkeypatch.setattr(jit_cache, "_enabled", True)
+            with monkeypatch.context() as m:
+                m.setattr(controller_module, "slot_features", lambda *a: pytest.fail("numpy's features ran"))
+                got = model.step_inputs(state, ops)
+            assert got.shape == want.shape == (batch, model.config.input_dim)
+            np.testing.assert_allclose(got, want, rtol=1e-6, atol=1e-6)
+    assert int(state.queue.max()) > 0  # waypoints were passed on the way
