@@ -6,7 +6,8 @@
   ``../shared/data`` beside the checkout. Tests that need it ask for the :func:`shared_data`
   fixture (or :func:`require_data`) and skip, saying how to point them at the data, when absent;
 - the robot models (MJCF) likewise: ``$MOTION_ENV_ROBOTS`` when set, else ``../shared/robots``;
-  tests ask for :func:`require_robot` and skip when a robot is absent.
+  tests ask for :func:`require_robot` and skip when a robot is absent;
+- a compiled loop is tested against the numpy operations it replaces with :func:`both_ways`.
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ import os
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
+from types import ModuleType
+from typing import Any
 
 import numpy as np
 import pytest
@@ -172,3 +175,27 @@ def tiny_classifier():
         layers=2,
     )
     return MotionClassifier(config).eval()
+
+
+@pytest.fixture
+def both_ways(monkeypatch: pytest.MonkeyPatch) -> Callable[..., dict[bool, Any]]:
+    """``both_ways(module, name, run, min_calls=1)``: what ``run()`` returns with numba's compiled
+    loops on and off (``jit_cache``'s switch), as {True: ..., False: ...}; fails unless
+    ``module.name``, the compiled loop under test, ran `min_calls` times when they were on."""
+    from motion_env.models import jit_cache
+
+    def run_both(
+        module: ModuleType, name: str, run: Callable[[], Any], min_calls: int = 1
+    ) -> dict[bool, Any]:
+        calls = []
+        compiled = getattr(module, name)
+        monkeypatch.setattr(module, name, lambda *a: calls.append(1) or compiled(*a))
+        outputs = {}
+        for on in (True, False):
+            monkeypatch.setattr(jit_cache, "_enabled", on)
+            outputs[on] = run()
+        monkeypatch.setattr(jit_cache, "_enabled", None)
+        assert len(calls) >= min_calls, f"{module.__name__}.{name} ran {len(calls)} times"
+        return outputs
+
+    return run_both

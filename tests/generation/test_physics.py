@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 
@@ -488,14 +490,11 @@ def test_the_compiled_frame_loops_give_what_numpy_gives(monkeypatch: pytest.Monk
 
 
 @pytest.mark.parametrize("with_pull", [True, False])
-def test_the_compiled_placement_gives_what_numpy_gives(
-    monkeypatch: pytest.MonkeyPatch, with_pull: bool
-) -> None:
+def test_the_compiled_placement_gives_what_numpy_gives(both_ways: Callable, with_pull: bool) -> None:
     """ground_jit.place_frames against place_body's numpy passes, to the bit: standing, jumping and
     noisy bodies asked to stand, float or sink (planted, free and pulled feet; straight legs with
     no bend plane, shins folded back along the thighs)."""
     from motion_env.generation import ground, ground_jit
-    from motion_env.models import jit_cache
 
     rng = np.random.default_rng(3)
     jump, _ = _jump()
@@ -516,14 +515,11 @@ def test_the_compiled_placement_gives_what_numpy_gives(
     clearance = rng.uniform(0.0, SWING_CLEARANCE, (n, 2))
     flat_ankle = rng.uniform(0.05, 0.11, n)
     pull = np.where(rng.random((n, 2)) < 0.5, rng.uniform(0.0, 0.05, (n, 2)), 0.0) if with_pull else None
-    calls = []
-    compiled = ground_jit.place_frames
-    monkeypatch.setattr(ground_jit, "place_frames", lambda *a: calls.append(1) or compiled(*a))
-    outputs = {}
-    for on in (True, False):
-        monkeypatch.setattr(jit_cache, "_enabled", on)
-        outputs[on] = ground.place_body(joints, heights, down, clearance, flat_ankle, pull)
-    assert calls  # the compiled loop ran
+    outputs = both_ways(
+        ground_jit,
+        "place_frames",
+        lambda: ground.place_body(joints, heights, down, clearance, flat_ankle, pull),
+    )
     moved = np.abs(outputs[False] - joints).max(axis=(1, 2))
     assert (moved > 1e-3).mean() > 0.5  # the case is not trivial: most frames were placed
     np.testing.assert_array_equal(outputs[True], outputs[False])

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -220,12 +221,11 @@ def test_foot_pinner_leaves_free_motion_alone(humanml3d_sample) -> None:
 
 
 @pytest.mark.parametrize("hint", ["none", "toes", "fill"])
-def test_the_compiled_two_bone_ik_gives_what_numpy_gives(monkeypatch: pytest.MonkeyPatch, hint: str) -> None:
+def test_the_compiled_two_bone_ik_gives_what_numpy_gives(both_ways: Callable, hint: str) -> None:
     """ik_jit against two_bone_ik's numpy operations, to the bit: bent, straight and folded limbs,
     targets near, out of reach and straight across the root from the limb's end (the half turn),
     with no hint, a hint, and a hint that fills the bend a limb does not show."""
     from motion_env.generation import ik_jit
-    from motion_env.models import jit_cache
 
     rng = np.random.default_rng(5)
     n = 200
@@ -242,14 +242,11 @@ def test_the_compiled_two_bone_ik_gives_what_numpy_gives(monkeypatch: pytest.Mon
         ankle[rows], target[rows] = hip[rows] + 0.8 * np.array(axis), hip[rows] - 0.5 * np.array(axis)
     bend_hint = None if hint == "none" else rng.normal(0.0, 0.1, (n, 3))
     fill = 1.0 if hint == "fill" else 0.0
-    calls = []
-    compiled = ik_jit.solve_rows
-    monkeypatch.setattr(ik_jit, "solve_rows", lambda *a: calls.append(1) or compiled(*a))
-    outputs = {}
-    for on in (True, False):
-        monkeypatch.setattr(jit_cache, "_enabled", on)
-        outputs[on] = two_bone_ik(hip, knee, ankle, target, bend_hint, hint_length=0.1, hint_fill=fill)
-    assert calls  # the compiled loop ran
+    outputs = both_ways(
+        ik_jit,
+        "solve_rows",
+        lambda: two_bone_ik(hip, knee, ankle, target, bend_hint, hint_length=0.1, hint_fill=fill),
+    )
     for got, want in zip(outputs[True], outputs[False], strict=True):
         np.testing.assert_array_equal(got, want)
 
