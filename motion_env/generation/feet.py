@@ -195,9 +195,8 @@ def two_bone_ik(
 
         note_first_compile(solve_rows, "the two-bone IK")
         hint = target if bend_hint is None else bend_hint  # (not read without a hint)
-        return solve_rows(
-            hip, knee, ankle, target, hint, bend_hint is not None, hint_weight, hint_length, hint_fill
-        )
+        limbs = (np.ascontiguousarray(a) for a in (hip, knee, ankle, target, hint))  # one layout compiled
+        return solve_rows(*limbs, bend_hint is not None, hint_weight, hint_length, hint_fill)
     l1 = vector_norm(knee - hip)
     l2 = vector_norm(ankle - knee)
     to = target - hip

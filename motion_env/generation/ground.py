@@ -200,13 +200,14 @@ def place_body(
 
         note_first_compile(place_frames, "the body's placement on the floor")
         n = len(joints)
+        f64 = np.float64  # contiguous arrays of one layout: numba compiles one version
         return place_frames(
-            np.asarray(joints, dtype=np.float64),
-            np.asarray(heights, dtype=np.float64),
-            np.asarray(down, dtype=bool),
-            np.asarray(clearance, dtype=np.float64),
-            np.broadcast_to(np.asarray(flat_ankle, dtype=np.float64), (n,)),
-            np.zeros((n, 2)) if pull is None else np.asarray(pull, dtype=np.float64),
+            np.ascontiguousarray(joints, dtype=f64),
+            np.ascontiguousarray(heights, dtype=f64),
+            np.ascontiguousarray(down, dtype=bool),
+            np.ascontiguousarray(clearance, dtype=f64),
+            np.ascontiguousarray(np.broadcast_to(np.asarray(flat_ankle, dtype=f64), (n,))),
+            np.zeros((n, 2)) if pull is None else np.ascontiguousarray(pull, dtype=f64),
             pull is not None,
             COM_WEIGHTS,
             np.asarray(LEGS),
