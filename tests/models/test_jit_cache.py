@@ -31,8 +31,10 @@ def test_a_cached_loop_is_silent(tmp_path: Path, capsys: pytest.CaptureFixture[s
 
 
 def test_without_numba_the_models_run_numpy_operations(monkeypatch: pytest.MonkeyPatch) -> None:
-    """numba missing or NUMBA_DISABLE_JIT set: the controller's roll-out and the GPT's step take
-    numpy's operations (the compiled loops would not import, or would run as Python)."""
+    """numba missing or NUMBA_DISABLE_JIT set: the controller's roll-out and step inputs and the
+    GPT's step take numpy's operations (the compiled loops would not import, or would run as
+    Python; the generation stages' compiled loops are switched alike, tests/generation's
+    `both_ways`)."""
     import numpy as np
     import torch
 
@@ -44,6 +46,7 @@ def test_without_numba_the_models_run_numpy_operations(monkeypatch: pytest.Monke
     monkeypatch.setenv("NUMBA_DISABLE_JIT", "1")
     assert not jit_cache.jit_enabled()
     monkeypatch.setattr(controller_jit, "rollout", lambda *a: pytest.fail("the compiled roll-out ran"))
+    monkeypatch.setattr(controller_jit, "step_inputs", lambda *a: pytest.fail("the compiled inputs ran"))
     monkeypatch.setattr(gpt_jit, "step", lambda *a: pytest.fail("the compiled step ran"))
     torch.manual_seed(0)
     controller = PathController(ControllerConfig(text_dim=8, text_proj=4, hidden=8, mlp=8)).eval()
@@ -51,6 +54,8 @@ def test_without_numba_the_models_run_numpy_operations(monkeypatch: pytest.Monke
     with torch.no_grad():
         state = controller.init_state(torch.zeros(1, 8), None, np.zeros((1, 3)))
         assert controller.run(state, 3)[1].roots.shape == (1, 3, 3)
+        inputs = controller.step_inputs(state, controller.frame_ops(1))
+        assert inputs.shape == (1, controller.config.input_dim)
         path = torch.zeros(1, 3, gpt.config.path_dim)
         assert gpt.generate(torch.zeros(1, 8), path, 3, [torch.Generator()]).shape == (1, 3)
     monkeypatch.setattr(jit_cache, "_enabled", None)
