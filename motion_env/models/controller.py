@@ -293,16 +293,10 @@ class PathController(nn.Module):
         queue; a roll-out makes it once per waypoint passed, :func:`slot_features` every frame."""
         c = self.config
         if ops is self._numpy and self.compiled and jit_enabled():
-            from motion_env.models.controller_jit import step_inputs
+            from motion_env.models.controller_jit import jit_state, step_inputs
 
-            return step_inputs(
-                self._text_features(state.text).numpy(),
-                *(x.numpy() for x in (state.waypoints, state.count, state.queue, state.pos, state.theta)),
-                state.vel.numpy(),
-                state.frame.numpy(),
-                c.input_dim,
-                self._jit_constants(),
-            )
+            arrays = jit_state(self._text_features(state.text).numpy(), state)
+            return step_inputs(arrays, c.input_dim, self._jit_constants())
         view = ops.view(route_view(state.waypoints, state.count, state.queue, c.num_slots))
         frame = ops.array(state.frame.unsqueeze(1).float())
         const = ops.constants(c.step_scale, c.turn_scale, state.pos.dtype)
@@ -473,17 +467,10 @@ class PathController(nn.Module):
         self, state: ControllerState, num_steps: int, trace: bool, weights: tuple[np.ndarray, ...]
     ) -> tuple[ControllerState, Trace]:
         """:meth:`run`'s frames as one compiled loop (:mod:`motion_env.models.controller_jit`)."""
-        from motion_env.models.controller_jit import rollout
+        from motion_env.models.controller_jit import jit_state, rollout
 
-        out = rollout(
-            weights,
-            self._text_features(state.text).numpy(),
-            *(x.numpy() for x in (state.waypoints, state.count, state.queue, state.pos, state.theta)),
-            *(x.numpy() for x in (state.vel, state.hidden, state.frame)),
-            num_steps,
-            self._jit_constants(),
-            trace,
-        )
+        arrays = jit_state(self._text_features(state.text).numpy(), state)
+        out = rollout(weights, arrays, num_steps, self._jit_constants(), trace)
         device = state.pos.device
         new = replace(
             state,

@@ -12,7 +12,7 @@ One loop does what the torch/numpy frame (:meth:`PathController._frame
 (:func:`~motion_env.models.waypoint_features.slot_features`, the route's part made from the
 queue, :func:`~motion_env.models.waypoint_features.route_view`) and the queue
 (:func:`~motion_env.models.waypoint_features.next_queue`) do, in the same order on float32
-numbers; the two agree to float32 rounding (``tests/models/test_controller_jit.py``). The queue is
+numbers; the two agree to float32 rounding (``tests/models/test_controller_fast.py``). The queue is
 tested every frame: a target not reached leaves it as it is, so this is what the roll-out's
 test on the current target alone decides.
 
@@ -23,7 +23,7 @@ later processes).
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -31,7 +31,10 @@ from numba import njit
 from motion_env.models.jit_cache import note_first_compile
 from motion_env.models.jit_math import gelu
 
-__all__ = ["JitRollout", "rollout", "step_inputs"]
+if TYPE_CHECKING:
+    from motion_env.models.controller_state import ControllerState
+
+__all__ = ["JitRollout", "JitState", "jit_state", "rollout", "step_inputs"]
 
 
 class JitRollout(NamedTuple):
@@ -50,89 +53,74 @@ class JitRollout(NamedTuple):
     queues: np.ndarray
 
 
+class JitState(NamedTuple):
+    """A controller state's arrays as the compiled loops take them (:func:`jit_state`)."""
+
+    text: np.ndarray  # (B, text_proj) the captions' projection
+    waypoints: np.ndarray  # (B, K, 3) the routes
+    count: np.ndarray  # (B,) their lengths
+    queue: np.ndarray  # (B,) current targets
+    pos: np.ndarray  # (B, 2)
+    theta: np.ndarray  # (B,)
+    vel: np.ndarray  # (B, 3)
+    hidden: np.ndarray  # (B, hidden)
+    frame: np.ndarray  # (B,) each character's current frame index
+
+
+def jit_state(text: np.ndarray, state: ControllerState) -> JitState:
+    """`state`'s arrays (and its captions' projection `text`) contiguous, float32 or int64; the
+    ones a roll-out updates in place (queue, pos, theta, vel, hidden) are copies."""
+    f32, i64 = np.float32, np.int64
+    read = {name: getattr(state, name).detach().cpu().numpy() for name in JitState._fields if name != "text"}
+    return JitState(
+        text=np.ascontiguousarray(text, f32),
+        waypoints=np.ascontiguousarray(read["waypoints"], f32),
+        count=np.ascontiguousarray(read["count"], i64),
+        queue=np.array(read["queue"], i64),
+        pos=np.array(read["pos"], f32),
+        theta=np.array(read["theta"], f32),
+        vel=np.array(read["vel"], f32),
+        hidden=np.array(read["hidden"], f32),
+        frame=np.ascontiguousarray(read["frame"], i64),
+    )
+
+
 def rollout(
     weights: tuple[np.ndarray, ...],
-    text: np.ndarray,
-    waypoints: np.ndarray,
-    count: np.ndarray,
-    queue: np.ndarray,
-    pos: np.ndarray,
-    theta: np.ndarray,
-    vel: np.ndarray,
-    hidden: np.ndarray,
-    frame: np.ndarray,
+    state: JitState,
     num_steps: int,
     constants: tuple[int, float, float, float, float, float, float],
     trace: bool,
 ) -> JitRollout:
-    """Roll B characters out `num_steps` frames.
+    """Roll B characters out `num_steps` frames from `state` (whose arrays it updates).
 
     Args:
         weights: the controller's parameters as :meth:`NumpyOps.weights
             <motion_env.models.frame_ops.NumpyOps.weights>` holds them (matrices transposed):
             input MLP, GRU, output MLP.
-        text: (B, text_proj) the captions' projection.
-        waypoints, count, queue: the routes (B, K, 3), their lengths and current targets (B,).
-        pos, theta, vel, hidden: the state of each character's current frame.
-        frame: (B,) each character's current frame index.
+        state: :func:`jit_state`.
         constants: num_slots, max_time_to_go, step_scale, turn_scale, arrive_radius, seek_rate, fps.
         trace: also return every frame's velocity, GRU state and queue.
     """
-    f32 = np.float32
     note_first_compile(_rollout, "the path controller's roll-out")
-    arrays = [np.ascontiguousarray(w, f32) for w in weights]
-    return JitRollout(
-        *_rollout(
-            *arrays,
-            np.ascontiguousarray(text, f32),
-            np.ascontiguousarray(waypoints, f32),
-            np.ascontiguousarray(count, np.int64),
-            np.array(queue, np.int64),
-            np.array(pos, f32),
-            np.array(theta, f32),
-            np.array(vel, f32),
-            np.array(hidden, f32),
-            np.ascontiguousarray(frame, np.int64),
-            int(num_steps),
-            *constants,
-            bool(trace),
-        )
-    )
+    arrays = [np.ascontiguousarray(w, np.float32) for w in weights]
+    return JitRollout(*_rollout(*arrays, *state, int(num_steps), *constants, bool(trace)))
 
 
 def step_inputs(
-    text: np.ndarray,
-    waypoints: np.ndarray,
-    count: np.ndarray,
-    queue: np.ndarray,
-    pos: np.ndarray,
-    theta: np.ndarray,
-    vel: np.ndarray,
-    frame: np.ndarray,
-    width: int,
-    constants: tuple[int, float, float, float, float, float, float],
+    state: JitState, width: int, constants: tuple[int, float, float, float, float, float, float]
 ) -> np.ndarray:
-    """(B, width) what the network reads at the characters' current frame
-    (:meth:`PathController.step_inputs <motion_env.models.controller.PathController.step_inputs>`):
-    the captions' projection `text`, the waypoint features and the last velocity, halved, as the
-    roll-out builds its frame's input. The arrays are a state's (:func:`rollout`'s), `constants`
-    too."""
+    """(B, width) what the network reads at `state`'s frame (:meth:`PathController.step_inputs
+    <motion_env.models.controller.PathController.step_inputs>`): the captions' projection, the
+    waypoint features and the last velocity, halved, as the roll-out builds its frame's input;
+    `constants` as :func:`rollout`'s."""
     note_first_compile(_step_inputs, "the path controller's step inputs")
     num_slots, max_time_to_go, *_, fps = constants
+    s = state
     return _step_inputs(
-        np.ascontiguousarray(text, np.float32),
-        np.ascontiguousarray(waypoints, np.float32),
-        np.ascontiguousarray(count, np.int64),
-        np.ascontiguousarray(queue, np.int64),
-        np.ascontiguousarray(pos, np.float32),
-        np.ascontiguousarray(theta, np.float32),
-        np.ascontiguousarray(vel, np.float32),
-        np.ascontiguousarray(frame, np.int64),
-        int(width),
-        int(num_slots),
-        float(fps),
-        float(max_time_to_go),
-    )
+        s.text, s.waypoints, s.count, s.queue, s.pos, s.theta, s.vel, s.frame,
+        int(width), int(num_slots), float(fps), float(max_time_to_go),
+    )  # fmt: skip
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
