@@ -71,7 +71,7 @@ def jit_state(text: np.ndarray, state: ControllerState) -> JitState:
     """`state`'s arrays (and its captions' projection `text`) contiguous, float32 or int64; the
     ones a roll-out updates in place (queue, pos, theta, vel, hidden) are copies."""
     f32, i64 = np.float32, np.int64
-    read = {name: getattr(state, name).detach().cpu().numpy() for name in JitState._fields if name != "text"}
+    read = {name: getattr(state, name).numpy() for name in JitState._fields if name != "text"}  # CPU, no grad
     return JitState(
         text=np.ascontiguousarray(text, f32),
         waypoints=np.ascontiguousarray(read["waypoints"], f32),
