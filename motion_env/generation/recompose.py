@@ -20,11 +20,27 @@ from scipy.interpolate import PchipInterpolator
 from scipy.ndimage import gaussian_filter1d
 
 from motion_env.generation.feet import two_bone_ik
-from motion_env.motion.features import features_to_joints
-from motion_env.motion.kinematics import fit_bone_lengths, rotate_y
+from motion_env.models.jit_cache import jit_enabled, note_first_compile
+from motion_env.motion.features import FEATURE_DIM, features_to_joints
+from motion_env.motion.kinematics import (
+    BONE_CHILDREN,
+    BONE_PARENTS,
+    BONE_SHARE,
+    FIT_ITERATIONS,
+    fit_bone_lengths,
+    rotate_y,
+)
 from motion_env.motion.rotations import cross, vector_norm
-from motion_env.motion.skeleton import FACE_JOINTS, FPS, NUM_JOINTS
+from motion_env.motion.skeleton import (
+    BONE_LENGTHS,
+    FACE_JOINTS,
+    FPS,
+    NUM_JOINTS,
+    PARENTS,
+    RAW_OFFSETS,
+)
 from motion_env.motion.trajectory import (
+    HEADING_SMOOTH_SIGMA,
     root_path_from_joints,
     validate_root_path,
     validate_waypoints,
@@ -80,6 +96,16 @@ def local_pose_from_features(features: np.ndarray, first: int = 0) -> np.ndarray
     its heading reads).
     """
     features = np.asarray(features, dtype=np.float32)
+    if jit_enabled() and features.ndim in (2, 3) and features.shape[-1] == FEATURE_DIM:
+        if isinstance(first, (int, np.integer)) and 0 <= first < features.shape[-2]:
+            if np.isfinite(features).all():  # otherwise numpy's path names the frames
+                from motion_env.generation.compose_jit import gaussian_weights, local_pose
+
+                note_first_compile(local_pose, "the body's local pose")
+                rows = np.ascontiguousarray(features.reshape(-1, *features.shape[-2:]))
+                pose, finite = local_pose(rows, int(first), gaussian_weights(HEADING_SMOOTH_SIGMA), _FACE)
+                if finite:
+                    return pose.reshape(features.shape[:-2] + pose.shape[-3:])
     if not first:
         return local_pose_from_joints(features_to_joints(features))
     face = (0, *FACE_JOINTS)  # what root_path_from_joints reads
@@ -89,7 +115,12 @@ def local_pose_from_features(features: np.ndarray, first: int = 0) -> np.ndarray
     return local_pose_from_joints(features_to_joints(features, first=first), path)
 
 
-def _travel(root_path: np.ndarray, sigma: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+_FACE = np.array(FACE_JOINTS, np.int64)
+# The Gaussians (sigma in frames) of align_heading_to_travel: the velocity's, the correction's.
+_TRAVEL_SIGMA, _CORRECTION_SIGMA = 2.0, 1.0
+
+
+def _travel(root_path: np.ndarray, sigma: float = _TRAVEL_SIGMA) -> tuple[np.ndarray, np.ndarray]:
     """Speed (m/s) and direction of travel (heading convention) per frame of a root path (..., T, 3)."""
     if root_path.shape[-2] < 2:
         return np.zeros(root_path.shape[:-1]), root_path[..., 2].astype(np.float64)
@@ -113,12 +144,20 @@ def align_heading_to_travel(
         (T, 3) float32 root path with the new (unwrapped) heading ((B, T, 3) for B paths).
     """
     path = validate_root_path(root_path, batched=True).astype(np.float64)
+    lim = np.deg2rad(max_offset_deg)
+    if jit_enabled():
+        from motion_env.generation.compose_jit import gaussian_weights, travel_heading
+
+        note_first_compile(travel_heading, "the heading's turn to the travel")
+        ramp = np.array([min_speed, max(full_speed - min_speed, 1e-6)], np.float64)
+        rows = np.ascontiguousarray(path.reshape(-1, *path.shape[-2:]))
+        taps = gaussian_weights(_TRAVEL_SIGMA), gaussian_weights(_CORRECTION_SIGMA)
+        return travel_heading(rows, *taps, ramp, float(lim), float(FPS)).reshape(path.shape)
     speed, travel = _travel(path)
     offset = wrap_angle(travel - path[..., 2])
-    lim = np.deg2rad(max_offset_deg)
     w_speed = np.clip((speed - min_speed) / max(full_speed - min_speed, 1e-6), 0.0, 1.0)
     w_angle = np.clip((1.5 * lim - np.abs(offset)) / lim, 0.0, 1.0)
-    correction = gaussian_filter1d(w_speed * w_angle * offset, 1.0, axis=-1, mode="nearest")
+    correction = gaussian_filter1d(w_speed * w_angle * offset, _CORRECTION_SIGMA, axis=-1, mode="nearest")
     out = path.copy()
     out[..., 2] = path[..., 2] + correction
     return out.astype(np.float32)
@@ -145,6 +184,13 @@ def recompose(local_pose: np.ndarray, root_path: np.ndarray, face_travel: bool =
         raise ValueError(f"root_path has {path.shape[-2]} frames, local_pose {local.shape[-3]}")
     if face_travel:
         path = align_heading_to_travel(path)
+    if jit_enabled():
+        from motion_env.generation.compose_jit import place_on_path
+
+        note_first_compile(place_on_path, "the body's placement on its path")
+        rows = np.ascontiguousarray(local.reshape(-1, *local.shape[-3:]))
+        paths = np.ascontiguousarray(path.reshape(-1, *path.shape[-2:]), dtype=np.float64)
+        return place_on_path(rows, paths).reshape(local.shape)
     local[..., [0, 2]] -= local[..., :1, [0, 2]]
     joints = rotate_y(local, path[..., None, 2].astype(np.float64))
     joints[..., [0, 2]] += path[..., None, :2].astype(np.float64)
@@ -185,6 +231,8 @@ def on_bone_lengths(joints: np.ndarray) -> np.ndarray:
 
     joints: (..., 22, 3) -> float32 of the same shape.
     """
+    if jit_enabled():
+        return _on_bone_lengths_compiled(joints)
     decoded = np.asarray(joints, dtype=np.float64)
     out = fit_bone_lengths(joints).astype(np.float64)
     shape = out.shape
@@ -224,6 +272,35 @@ def on_bone_lengths(joints: np.ndarray) -> np.ndarray:
         flat[:, elbow], flat[:, wrist] = new_elbow[k * n : (k + 1) * n], new_wrist[k * n : (k + 1) * n]
     bend_elbows_one_way(flat)
     return flat.reshape(shape).astype(np.float32)
+
+
+def _on_bone_lengths_compiled(joints: np.ndarray) -> np.ndarray:
+    """:func:`on_bone_lengths` on :mod:`~motion_env.generation.compose_jit`'s loops, the same
+    numbers: fit_bone_lengths' rounds each a compiled step and numpy's matrix product (kept, so
+    that its sums are numpy's), then the rebuild, the arms and the elbows compiled."""
+    from motion_env.generation.compose_jit import arms_on_lengths, bone_excess
+
+    note_first_compile(arms_on_lengths, "the body's bone lengths")
+    checked = check_joints(joints, batched=True)  # fit_bone_lengths' check: float64
+    flat = np.ascontiguousarray(checked.reshape(-1, NUM_JOINTS, 3))
+    x = np.ascontiguousarray(np.moveaxis(flat.astype(np.float32), -2, 0)).reshape(NUM_JOINTS, -1)
+    for _ in range(FIT_ITERATIONS):
+        x = x - BONE_SHARE @ bone_excess(x, _BONE_TARGET, BONE_CHILDREN, BONE_PARENTS)
+    constants = np.array(
+        [1.0 / ARM_SCALE, ARM_SCALE, ARM_BEND_HINT, ARM_BEND_FILL, ELBOW_SAGITTAL, ELBOW_DOWN]
+    )
+    out = arms_on_lengths(
+        x, np.ascontiguousarray(flat[:, 0]), flat, _LENGTHS, _REST, _PARENTS, _ARMS, _SIDES, constants
+    )
+    return out.reshape(checked.shape)
+
+
+_LENGTHS = np.asarray(BONE_LENGTHS, np.float64)
+_BONE_TARGET = _LENGTHS[BONE_CHILDREN].astype(np.float32)
+_REST = RAW_OFFSETS.astype(np.float64)
+_PARENTS = np.array([max(p, 0) for p in PARENTS], np.int64)
+_ARMS = np.array(ARMS, np.int64)
+_SIDES = np.array([-1.0, 1.0])  # each arm's back: np.cross(outward, up), turned for the right arm
 
 
 def bend_elbows_one_way(joints: np.ndarray) -> None:

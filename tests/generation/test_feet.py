@@ -21,7 +21,13 @@ from motion_env.generation.feet import (
     soft_reach,
     two_bone_ik,
 )
-from motion_env.generation.recompose import ARMS, bend_elbows_one_way, on_bone_lengths
+from motion_env.generation.recompose import (
+    ARMS,
+    ELBOW_DOWN,
+    ELBOW_SAGITTAL,
+    bend_elbows_one_way,
+    on_bone_lengths,
+)
 from motion_env.motion.kinematics import bone_lengths, with_bone_lengths
 from motion_env.motion.skeleton import BONE_LENGTHS, PARENTS, RAW_OFFSETS
 
@@ -311,6 +317,38 @@ def test_an_arm_held_out_sideways_keeps_its_elbow_and_an_elbow_crossing_its_line
     steps = np.linalg.norm(np.diff(out[:, elbow], axis=0), axis=-1)
     assert steps.max() <= 0.001 + 1e-9  # no jump where it crosses
     assert (((out[:, elbow] - middle) @ back) >= -1e-9).all()  # behind the line, every frame
+
+
+def test_the_compiled_bone_lengths_give_what_numpy_gives(both_ways: Callable) -> None:
+    """compose_jit's bone lengths, arms and elbows against on_bone_lengths' numpy operations, to
+    the bit: noisy poses, arms straight but short, elbows bent backwards (each elbow rewritten),
+    none moved (none rewritten), a bone of no length (its rest direction), and a batch."""
+    from motion_env.generation import compose_jit
+
+    rng = np.random.default_rng(11)
+    pose = _pose()
+    noisy = pose + rng.normal(0.0, 0.03, (40, 22, 3))
+    short = np.repeat(pose[None], 6, axis=0)
+    for shoulder, elbow, wrist in ARMS:
+        short[:, wrist] = pose[shoulder] + [0.0, -0.3, 0.0]
+        short[:, elbow] = pose[shoulder] + [0.0, -0.15, 0.0] + rng.normal(0.0, 0.003, (6, 3))
+    backwards = np.stack([_mirror_elbows(_turn_arms(pose, 0, a)) for a in (0.0, 60.0, -50.0)])
+    still = np.stack([_turn_arms(pose, 0, a) for a in (0.0, 60.0, -50.0)])
+    collapsed = np.repeat(pose[None, :1], 22, axis=1).repeat(2, axis=0)  # no bone has a direction
+    for joints in (noisy, short, backwards, still, collapsed, noisy.reshape(4, 10, 22, 3)):
+        run = lambda j=joints: on_bone_lengths(j.astype(np.float32))  # noqa: E731
+        outputs = both_ways(compose_jit, "arms_on_lengths", run)
+        np.testing.assert_array_equal(outputs[True], outputs[False])
+        assert outputs[True].shape == joints.shape and outputs[True].dtype == np.float32
+    # The elbows alone: when none is moved, none is rewritten; when one is, all are (as numpy's).
+    arms, constants = np.array(ARMS), (ELBOW_SAGITTAL, ELBOW_DOWN)
+    hanging = np.stack([_turn_arms(pose, 0, a) for a in np.linspace(-50.0, 60.0, 30)])
+    hanging += rng.normal(0.0, 0.002, hanging.shape)
+    for joints in (hanging, np.concatenate([hanging, backwards])):
+        want, got = joints.copy(), joints.copy()
+        bend_elbows_one_way(want)
+        compose_jit._bend_elbows(got, arms, *constants)
+        np.testing.assert_array_equal(got, want)
 
 
 def _shin_foot(out: np.ndarray, leg: int) -> np.ndarray:

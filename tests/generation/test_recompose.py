@@ -7,6 +7,7 @@ from collections.abc import Callable
 
 import numpy as np
 import pytest
+from scipy.ndimage import gaussian_filter1d
 
 from motion_env.evaluation.metrics import foot_skating_ratio
 from motion_env.generation import recompose as rc
@@ -249,6 +250,79 @@ def test_the_compiled_two_bone_ik_gives_what_numpy_gives(both_ways: Callable, hi
     )
     for got, want in zip(outputs[True], outputs[False], strict=True):
         np.testing.assert_array_equal(got, want)
+
+
+def _spun(features: np.ndarray) -> np.ndarray:
+    """`features` turning on the spot a half turn a frame in places (every wrap of the heading
+    visited, steps of exactly pi), with a root that drifts far off."""
+    spun = features.copy()
+    spun[::3, 0] = np.float32(np.pi / 2)  # the root's rotation velocity is half the heading's step
+    spun[1::5, 0] = np.float32(-np.pi / 2)
+    spun[:, 1:3] *= 40.0
+    return spun
+
+
+def test_the_compiled_local_pose_gives_what_numpy_gives(both_ways: Callable, humanml3d_sample) -> None:
+    """compose_jit.local_pose against local_pose_from_features' numpy operations, to the bit: a
+    real clip, the same spinning, a batch of windows, each from frame 0 and from later frames."""
+    from motion_env.generation import compose_jit
+
+    _, features = humanml3d_sample
+    windows = np.stack([features[:40], features[30:70], _spun(features[:40])])
+    for feats in (features, _spun(features), windows):
+        for first in (0, 1, feats.shape[-2] - 4, feats.shape[-2] - 1):
+            run = lambda f=feats, k=first: rc.local_pose_from_features(f, k)  # noqa: E731
+            outputs = both_ways(compose_jit, "local_pose", run)
+            np.testing.assert_array_equal(outputs[True], outputs[False])
+    bad = features.copy()
+    bad[7, 100] = np.nan
+    with pytest.raises(ValueError, match="frames \\[7\\]"):  # the numpy path names the frame
+        rc.local_pose_from_features(bad, 3)
+
+
+def test_the_compiled_heading_and_placement_give_what_numpy_gives(both_ways: Callable) -> None:
+    """compose_jit.travel_heading and place_on_path against align_heading_to_travel's and
+    recompose's numpy operations, to the bit: a curving walk, side steps, a backward walk, a body
+    standing still, headings that wrap round, one frame, and a batch."""
+    from motion_env.generation import compose_jit
+
+    rng = np.random.default_rng(9)
+    walk = _curve(80)
+    side = walk.copy()
+    side[:, 2] += np.pi / 2
+    back = walk.copy()
+    back[:, 2] += np.pi
+    still = np.repeat(walk[:1], 30, axis=0)
+    wrapped = walk.copy()
+    wrapped[:, 2] += np.float32(3 * np.pi) + rng.normal(0.0, 0.3, 80).astype(np.float32)
+    paths = [walk, side, back, still, wrapped, walk[:1], np.stack([walk, back, wrapped])]
+    for path in paths:
+        outputs = both_ways(compose_jit, "travel_heading", lambda p=path: rc.align_heading_to_travel(p))
+        np.testing.assert_array_equal(outputs[True], outputs[False])
+        local = rng.normal(0.0, 0.3, path.shape[:-1] + (22, 3)).astype(np.float32)
+        outputs = both_ways(compose_jit, "place_on_path", lambda p=path, q=local: rc.recompose(q, p))
+        np.testing.assert_array_equal(outputs[True], outputs[False])
+
+
+def test_the_compiled_angle_steps_and_gaussian_match_numpys_and_scipys() -> None:
+    """compose_jit's wrap and unwrap against numpy's on the edges of their ranges (angles of odd
+    multiples of pi, steps of exactly +-pi and of 2 pi), and its Gaussian against scipy's."""
+    from motion_env.generation import compose_jit
+
+    pi = np.pi
+    angles = np.array([-3 * pi, -pi, -pi + 1e-12, 0.0, -0.0, pi - 1e-12, pi, 2 * pi, 3 * pi, 1e3, -1e3])
+    wrapped = np.array([compose_jit._wrap(a) for a in angles])
+    np.testing.assert_array_equal(wrapped, wrap_angle(angles))
+    line = np.cumsum([0.1, pi, -pi, 2 * pi, pi + 1e-9, -pi - 1e-9, 3.0, -3.0, 7.0])
+    out = np.empty_like(line)
+    compose_jit._unwrap(line, out)
+    np.testing.assert_array_equal(out, np.unwrap(line))
+    rng = np.random.default_rng(4)  # the Gaussian in float64, where the order of its sums shows
+    for sigma, size in ((5.0, 1), (5.0, 7), (5.0, 300), (2.0, 300), (1.0, 300)):
+        values = np.cumsum(rng.normal(0.0, 1.0, size))
+        out = np.empty_like(values)
+        compose_jit._smooth(values, compose_jit.gaussian_weights(sigma), out)
+        np.testing.assert_array_equal(out, gaussian_filter1d(values, sigma, mode="nearest"))
 
 
 def test_two_bone_ik_keeps_a_nearly_straight_knee_bending_forward() -> None:
