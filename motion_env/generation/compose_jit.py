@@ -22,6 +22,7 @@ import numpy as np
 from numba import njit
 
 from motion_env.generation.ik_jit import solve
+from motion_env.models.jit_math import unwrap, wrap
 
 __all__ = [
     "arms_on_lengths",
@@ -29,11 +30,9 @@ __all__ = [
     "gaussian_weights",
     "local_pose",
     "place_on_path",
+    "smooth_paths",
     "travel_heading",
 ]
-
-_PI = math.pi
-_TWO_PI = 2.0 * math.pi
 
 
 @lru_cache(maxsize=8)
@@ -58,35 +57,6 @@ def _smooth(values, weights, out):
         for k in range(half, 0, -1):
             total += (values[max(i - k, 0)] + values[min(i + k, last)]) * weights[half - k]
         out[i] = total
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _wrap(angle):
-    """:func:`~motion_env.motion.trajectory.wrap_angle` of one angle: numpy's floored modulo."""
-    mod = np.fmod(angle + _PI, _TWO_PI)
-    if mod != 0.0:
-        if mod < 0.0:
-            mod += _TWO_PI
-    else:
-        mod = 0.0
-    return mod - _PI
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _unwrap(angles, out):
-    """``np.unwrap`` of a (T,) float64 line into `out` (period 2 pi, jumps of pi or more)."""
-    out[0] = angles[0]
-    total = 0.0
-    for t in range(1, angles.shape[0]):
-        step = angles[t] - angles[t - 1]
-        mod = _wrap(step)
-        if mod == -_PI and step > 0.0:
-            mod = _PI
-        correction = mod - step
-        if abs(step) < _PI:
-            correction = 0.0
-        total += correction
-        out[t] = angles[t] + total
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -132,7 +102,7 @@ def local_pose(features, first, weights, face):
             across_x = (np.float64(rh[0]) - np.float64(lh[0])) + (np.float64(rs[0]) - np.float64(ls[0]))
             across_z = (np.float64(rh[2]) - np.float64(lh[2])) + (np.float64(rs[2]) - np.float64(ls[2]))
             facing[t] = math.atan2(across_z, -across_x)
-        _unwrap(facing, unwrapped)
+        unwrap(facing, unwrapped)
         _smooth(unwrapped, weights, smoothed)
         for t in range(first, frames):
             # local_pose_from_joints: the float32 path's pelvis taken off, its heading turned back
@@ -179,7 +149,7 @@ def travel_heading(paths, speed_weights, angle_weights, ramp, max_offset, fps): 
                 travel = math.atan2(smooth_x[t], smooth_z[t])
             else:
                 speed, travel = 0.0, heading[t]
-            offset = _wrap(travel - heading[t])
+            offset = wrap(travel - heading[t])
             w_speed = min(max((speed - ramp[0]) / ramp[1], 0.0), 1.0)
             w_angle = min(max((1.5 * max_offset - abs(offset)) / max_offset, 0.0), 1.0)
             weighted[t] = w_speed * w_angle * offset
@@ -392,3 +362,25 @@ def _bend_elbows(flat, arms, sagittal_full, down_full):
                 m0, m1, m2 = t[3], t[4], t[5]
             e = arms[a, 1]
             flat[f, e, 0], flat[f, e, 1], flat[f, e, 2] = t[0] + m0, t[1] + m1, t[2] + m2
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def smooth_paths(paths, pad, weights):
+    """:func:`~motion_env.generation.recompose.smooth_path` of (B, T, 3) float64 `paths`: each
+    column extended by `pad` frames of odd reflection (``2 p[0] - p[k]``, as ``np.pad`` makes
+    them), smoothed by the Gaussian `weights`, cut back to (B, T, 3) float64."""
+    batch, frames = paths.shape[0], paths.shape[1]
+    out = np.empty_like(paths)
+    line, smoothed = np.empty(frames + 2 * pad), np.empty(frames + 2 * pad)
+    for b in range(batch):
+        for c in range(3):
+            first, last = paths[b, 0, c], paths[b, frames - 1, c]
+            for k in range(pad):
+                line[k] = 2.0 * first - paths[b, pad - k, c]
+                line[pad + frames + k] = 2.0 * last - paths[b, frames - 2 - k, c]
+            for t in range(frames):
+                line[pad + t] = paths[b, t, c]
+            _smooth(line, weights, smoothed)
+            for t in range(frames):
+                out[b, t, c] = smoothed[pad + t]
+    return out

@@ -506,6 +506,12 @@ def smooth_path(path: np.ndarray, sigma: float) -> np.ndarray:
     if sigma <= 0 or path.shape[-2] < 2:
         return path
     pad = min(int(4 * sigma) + 1, path.shape[-2] - 1)
+    if jit_enabled() and path.ndim in (2, 3) and path.shape[-1] == 3:
+        from motion_env.generation.compose_jit import gaussian_weights, smooth_paths
+
+        note_first_compile(smooth_paths, "the path's smoothing")
+        rows = np.ascontiguousarray(np.asarray(path, np.float64).reshape(-1, *path.shape[-2:]))
+        return smooth_paths(rows, pad, gaussian_weights(sigma)).reshape(path.shape).astype(path.dtype)
     widths = [(0, 0)] * (path.ndim - 2) + [(pad, pad), (0, 0)]
     padded = np.pad(np.asarray(path, np.float64), widths, mode="reflect", reflect_type="odd")
     out = gaussian_filter1d(padded, sigma, axis=-2, mode="nearest", truncate=4.0)

@@ -273,6 +273,11 @@ class PathController(nn.Module):
 
     def _advance_queue(self, state: ControllerState) -> ControllerState:
         """Move each character's target past reached waypoints (timed: frame reached; untimed: near)."""
+        if self.compiled and jit_enabled() and state.pos.device.type == "cpu":
+            from motion_env.models.controller_jit import advance_queue  # numba only when it runs
+
+            args = (state.waypoints, state.count, state.queue, state.pos, state.frame)
+            return replace(state, queue=advance_queue(*args, self.config.arrive_radius))
         queue = next_queue(
             state.waypoints, state.count, state.queue, state.pos, state.frame, self.config.arrive_radius
         )

@@ -1,5 +1,6 @@
-"""Arithmetic the compiled loops share (numba): :mod:`motion_env.models.controller_jit` and
-:mod:`motion_env.models.gpt_jit`."""
+"""Arithmetic the compiled loops share (numba): :mod:`motion_env.models.controller_jit`,
+:mod:`motion_env.models.gpt_jit`, :mod:`motion_env.models.path_features_jit` and
+:mod:`motion_env.generation.compose_jit`."""
 
 from __future__ import annotations
 
@@ -8,7 +9,10 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["gelu"]
+__all__ = ["gelu", "unwrap", "wrap"]
+
+_PI = math.pi
+_TWO_PI = 2.0 * math.pi
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -20,3 +24,32 @@ def gelu(x: np.ndarray) -> np.ndarray:
             v = x[i, j]
             x[i, j] = v * half * (one + np.float32(math.erf(v * root)))
     return x
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def wrap(angle):
+    """:func:`~motion_env.motion.trajectory.wrap_angle` of one angle: numpy's floored modulo."""
+    mod = np.fmod(angle + _PI, _TWO_PI)
+    if mod != 0.0:
+        if mod < 0.0:
+            mod += _TWO_PI
+    else:
+        mod = 0.0
+    return mod - _PI
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def unwrap(angles, out):
+    """``np.unwrap`` of a (T,) float64 line into `out` (period 2 pi, jumps of pi or more)."""
+    out[0] = angles[0]
+    total = 0.0
+    for t in range(1, angles.shape[0]):
+        step = angles[t] - angles[t - 1]
+        mod = wrap(step)
+        if mod == -_PI and step > 0.0:
+            mod = _PI
+        correction = mod - step
+        if abs(step) < _PI:
+            correction = 0.0
+        total += correction
+        out[t] = angles[t] + total

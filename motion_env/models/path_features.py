@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from motion_env.models.jit_cache import jit_enabled, note_first_compile
 from motion_env.motion.kinematics import to_heading_frame
 from motion_env.motion.skeleton import FPS
 from motion_env.motion.trajectory import validate_root_path
@@ -70,6 +71,11 @@ def first_token_path_features(paths: np.ndarray, rate: int) -> np.ndarray:
     ``token_path_features(paths[n], rate)[0]`` (the stream needs only each character's next
     token's; its paths are checked where they are made)."""
     path = np.asarray(paths, np.float32).astype(np.float64)
+    if jit_enabled() and path.ndim == 3 and path.shape[-1] == 3 and path.shape[1] >= 1:
+        from motion_env.models.path_features_jit import first_token_features
+
+        note_first_compile(first_token_features, "the stream's path features")
+        return first_token_features(path, int(rate), LOOKAHEAD_FRAMES, float(FPS))
     path[..., 2] = np.unwrap(path[..., 2], axis=-1)
     first = np.zeros(1, dtype=np.int64)
     short = _average_motion(path, first, int(rate))

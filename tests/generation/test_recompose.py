@@ -281,9 +281,10 @@ def test_the_compiled_local_pose_gives_what_numpy_gives(both_ways: Callable, hum
 
 
 def test_the_compiled_heading_and_placement_give_what_numpy_gives(both_ways: Callable) -> None:
-    """compose_jit.travel_heading and place_on_path against align_heading_to_travel's and
-    recompose's numpy operations, to the bit: a curving walk, side steps, a backward walk, a body
-    standing still, headings that wrap round, one frame, and a batch."""
+    """compose_jit.travel_heading, place_on_path and smooth_paths against align_heading_to_travel's,
+    recompose's and smooth_path's numpy operations, to the bit: a curving walk, side steps, a
+    backward walk, a body standing still, headings that wrap round, one frame (two and three for
+    the smoothing's reflection), and a batch."""
     from motion_env.generation import compose_jit
 
     rng = np.random.default_rng(9)
@@ -302,20 +303,26 @@ def test_the_compiled_heading_and_placement_give_what_numpy_gives(both_ways: Cal
         local = rng.normal(0.0, 0.3, path.shape[:-1] + (22, 3)).astype(np.float32)
         outputs = both_ways(compose_jit, "place_on_path", lambda p=path, q=local: rc.recompose(q, p))
         np.testing.assert_array_equal(outputs[True], outputs[False])
+    for path in (walk, walk[:2], walk[:3], walk[:9], wrapped.astype(np.float64), np.stack([walk, back])):
+        outputs = both_ways(compose_jit, "smooth_paths", lambda p=path: rc.smooth_path(p, 2.0))
+        np.testing.assert_array_equal(outputs[True], outputs[False])
+        assert outputs[True].dtype == path.dtype
 
 
 def test_the_compiled_angle_steps_and_gaussian_match_numpys_and_scipys() -> None:
-    """compose_jit's wrap and unwrap against numpy's on the edges of their ranges (angles of odd
-    multiples of pi, steps of exactly +-pi and of 2 pi), and its Gaussian against scipy's."""
+    """The compiled wrap and unwrap (jit_math) against numpy's on the edges of their ranges (angles
+    of odd multiples of pi, steps of exactly +-pi and of 2 pi), and compose_jit's Gaussian against
+    scipy's."""
     from motion_env.generation import compose_jit
+    from motion_env.models import jit_math
 
     pi = np.pi
     angles = np.array([-3 * pi, -pi, -pi + 1e-12, 0.0, -0.0, pi - 1e-12, pi, 2 * pi, 3 * pi, 1e3, -1e3])
-    wrapped = np.array([compose_jit._wrap(a) for a in angles])
+    wrapped = np.array([jit_math.wrap(a) for a in angles])
     np.testing.assert_array_equal(wrapped, wrap_angle(angles))
     line = np.cumsum([0.1, pi, -pi, 2 * pi, pi + 1e-9, -pi - 1e-9, 3.0, -3.0, 7.0])
     out = np.empty_like(line)
-    compose_jit._unwrap(line, out)
+    jit_math.unwrap(line, out)
     np.testing.assert_array_equal(out, np.unwrap(line))
     rng = np.random.default_rng(4)  # the Gaussian in float64, where the order of its sums shows
     for sigma, size in ((5.0, 1), (5.0, 7), (5.0, 300), (2.0, 300), (1.0, 300)):

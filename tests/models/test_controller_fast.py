@@ -171,6 +171,9 @@ def test_gradients_equal_the_frame_by_frame_reference() -> None:
 
 
 def test_waypoint_queue_equals_its_loop() -> None:
+    """next_queue and its compiled twin (controller_jit.advance_queue) against the loop they replace."""
+    from motion_env.models.controller_jit import advance_queue
+
     model = _tiny()
     rng = np.random.default_rng(0)
     for trial in range(40):
@@ -190,6 +193,8 @@ def test_waypoint_queue_equals_its_loop() -> None:
         )
         got = next_queue(state.waypoints, state.count, state.queue, state.pos, state.frame, 0.3)
         assert torch.equal(got, _reference_queue(model, state)), trial
+        compiled = advance_queue(state.waypoints, state.count, state.queue, state.pos, state.frame, 0.3)
+        assert torch.equal(compiled, got) and compiled.dtype == got.dtype, trial
 
 
 def test_trace_holds_every_frame_of_stepping() -> None:

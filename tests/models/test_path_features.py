@@ -42,3 +42,21 @@ def test_token_path_features_invariant_to_placement_and_sees_turns() -> None:
     assert (feats[:10, 0] > 0).all()  # the path bends towards the character's left
     with pytest.raises(ValueError, match="rate"):
         path_features.token_path_features(path, 0)
+
+
+def test_the_compiled_first_token_features_give_what_numpy_gives(both_ways) -> None:
+    """path_features_jit against first_token_path_features' numpy operations, to the bit: turning
+    paths whose headings wrap round, paths shorter than a token and than a second, one frame."""
+    from motion_env.models import path_features_jit
+
+    rng = np.random.default_rng(6)
+    turning = np.cumsum(rng.normal(0.0, 0.1, (5, 40, 3)), axis=1)
+    turning[..., 2] = np.cumsum(rng.normal(0.0, 1.5, (5, 40)), axis=1)  # steps past pi: wraps
+    for paths_ in (turning, turning[:, :3], turning[:, :12], turning[:, :1], turning[:1]):
+        run = lambda p=paths_: path_features.first_token_path_features(p.astype(np.float32), 4)  # noqa: E731
+        outputs = both_ways(path_features_jit, "first_token_features", run)
+        np.testing.assert_array_equal(outputs[True], outputs[False])
+        assert outputs[True].dtype == np.float32 and outputs[True].shape == (
+            len(paths_),
+            path_features.D_PATH,
+        )
