@@ -236,23 +236,25 @@ def _rebuild(x, pelvis, lengths, rest, parents, out):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _arm_length(joints, f, shoulder, elbow, wrist):
+    """An arm's length in frame f: its upper arm's and its forearm's, as numpy sums them."""
+    upper = _norm(
+        joints[f, elbow, 0] - joints[f, shoulder, 0], joints[f, elbow, 1] - joints[f, shoulder, 1],
+        joints[f, elbow, 2] - joints[f, shoulder, 2],
+    )  # fmt: skip
+    fore = _norm(
+        joints[f, wrist, 0] - joints[f, elbow, 0], joints[f, wrist, 1] - joints[f, elbow, 1],
+        joints[f, wrist, 2] - joints[f, elbow, 2],
+    )  # fmt: skip
+    return upper + fore
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _arm_goal(flat, dec, f, shoulder, elbow, wrist, other, side, scale_range):
     """on_bone_lengths' goal for one arm of frame f (the decoded wrist relative to the shoulder,
     scaled to the arm's length) and its bend hint (back and out): six numbers."""
-    length = _norm(
-        flat[f, elbow, 0] - flat[f, shoulder, 0], flat[f, elbow, 1] - flat[f, shoulder, 1],
-        flat[f, elbow, 2] - flat[f, shoulder, 2],
-    ) + _norm(
-        flat[f, wrist, 0] - flat[f, elbow, 0], flat[f, wrist, 1] - flat[f, elbow, 1],
-        flat[f, wrist, 2] - flat[f, elbow, 2],
-    )  # fmt: skip
-    decoded = _norm(
-        dec[f, elbow, 0] - dec[f, shoulder, 0], dec[f, elbow, 1] - dec[f, shoulder, 1],
-        dec[f, elbow, 2] - dec[f, shoulder, 2],
-    ) + _norm(
-        dec[f, wrist, 0] - dec[f, elbow, 0], dec[f, wrist, 1] - dec[f, elbow, 1],
-        dec[f, wrist, 2] - dec[f, elbow, 2],
-    )  # fmt: skip
+    length = _arm_length(flat, f, shoulder, elbow, wrist)
+    decoded = _arm_length(dec, f, shoulder, elbow, wrist)
     scale = _clip(length / max(decoded, 1e-9), scale_range[0], scale_range[1])
     g0 = flat[f, shoulder, 0] + (dec[f, wrist, 0] - dec[f, shoulder, 0]) * scale
     g1 = flat[f, shoulder, 1] + (dec[f, wrist, 1] - dec[f, shoulder, 1]) * scale

@@ -276,8 +276,7 @@ class PathController(nn.Module):
         if self.compiled and jit_enabled() and state.pos.device.type == "cpu":
             from motion_env.models.controller_jit import advance_queue  # numba only when it runs
 
-            args = (state.waypoints, state.count, state.queue, state.pos, state.frame)
-            return replace(state, queue=advance_queue(*args, self.config.arrive_radius))
+            return replace(state, queue=advance_queue(state, self.config.arrive_radius))
         queue = next_queue(
             state.waypoints, state.count, state.queue, state.pos, state.frame, self.config.arrive_radius
         )

@@ -162,25 +162,18 @@ def _next_queue(waypoints, count, queue, pos, frame, arrive):
         queue[b] = q
 
 
-def advance_queue(
-    waypoints: torch.Tensor,
-    count: torch.Tensor,
-    queue: torch.Tensor,
-    pos: torch.Tensor,
-    frame: torch.Tensor,
-    arrive_radius: float,
-) -> torch.Tensor:
-    """:func:`~motion_env.models.waypoint_features.next_queue` of CPU tensors on the roll-out's
-    compiled loop: a new (B,) long queue (a restore's new route: a dozen torch operations, 0.2 ms
-    of a stream's token, as one loop)."""
+def advance_queue(state: ControllerState, arrive_radius: float) -> torch.Tensor:
+    """:func:`~motion_env.models.waypoint_features.next_queue` of a state's CPU tensors on the
+    roll-out's compiled loop: a new (B,) long queue (a restore's new route: a dozen torch
+    operations, 0.2 ms of a stream's token, as one loop)."""
     note_first_compile(_next_queue, "the controller's route queue")
-    out = queue.clone()
+    out = state.queue.clone()
     _next_queue(
-        np.ascontiguousarray(waypoints.numpy(), np.float32),
-        np.ascontiguousarray(count.numpy(), np.int64),
+        np.ascontiguousarray(state.waypoints.numpy(), np.float32),
+        np.ascontiguousarray(state.count.numpy(), np.int64),
         out.numpy(),
-        np.ascontiguousarray(pos.detach().numpy(), np.float32),
-        np.ascontiguousarray(frame.numpy(), np.int64),
+        np.ascontiguousarray(state.pos.detach().numpy(), np.float32),
+        np.ascontiguousarray(state.frame.numpy(), np.int64),
         np.float32(arrive_radius),
     )
     return out

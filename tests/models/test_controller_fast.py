@@ -193,7 +193,7 @@ def test_waypoint_queue_equals_its_loop() -> None:
         )
         got = next_queue(state.waypoints, state.count, state.queue, state.pos, state.frame, 0.3)
         assert torch.equal(got, _reference_queue(model, state)), trial
-        compiled = advance_queue(state.waypoints, state.count, state.queue, state.pos, state.frame, 0.3)
+        compiled = advance_queue(state, 0.3)
         assert torch.equal(compiled, got) and compiled.dtype == got.dtype, trial
 
 
