@@ -10,6 +10,9 @@
   skeleton's bone lengths, its hands where the decoder put them.
 
 All functions are deterministic numpy; root paths follow :mod:`motion_env.motion.trajectory`.
+Where numba runs, the body's placement (:func:`local_pose_from_features`,
+:func:`align_heading_to_travel`, :func:`recompose`, :func:`on_bone_lengths`) and
+:func:`smooth_path` run compiled (:mod:`motion_env.generation.compose_jit`), the same numbers.
 The feet are cleaned afterwards by :mod:`motion_env.generation.feet`.
 """
 
@@ -96,16 +99,9 @@ def local_pose_from_features(features: np.ndarray, first: int = 0) -> np.ndarray
     its heading reads).
     """
     features = np.asarray(features, dtype=np.float32)
-    if jit_enabled() and features.ndim in (2, 3) and features.shape[-1] == FEATURE_DIM:
-        if isinstance(first, (int, np.integer)) and 0 <= first < features.shape[-2]:
-            if np.isfinite(features).all():  # otherwise numpy's path names the frames
-                from motion_env.generation.compose_jit import gaussian_weights, local_pose
-
-                note_first_compile(local_pose, "the body's local pose")
-                rows = np.ascontiguousarray(features.reshape(-1, *features.shape[-2:]))
-                pose, finite = local_pose(rows, int(first), gaussian_weights(HEADING_SMOOTH_SIGMA), _FACE)
-                if finite:
-                    return pose.reshape(features.shape[:-2] + pose.shape[-3:])
+    compiled = _local_pose_compiled(features, first) if jit_enabled() else None
+    if compiled is not None:
+        return compiled
     if not first:
         return local_pose_from_joints(features_to_joints(features))
     face = (0, *FACE_JOINTS)  # what root_path_from_joints reads
@@ -113,6 +109,24 @@ def local_pose_from_features(features: np.ndarray, first: int = 0) -> np.ndarray
     skeleton[..., face, :] = features_to_joints(features, only=face)
     path = root_path_from_joints(skeleton)[..., first:, :]
     return local_pose_from_joints(features_to_joints(features, first=first), path)
+
+
+def _local_pose_compiled(features: np.ndarray, first: int) -> np.ndarray | None:
+    """:func:`local_pose_from_features` on :mod:`~motion_env.generation.compose_jit`'s loop, the
+    same numbers; None where numpy's path must run to name what is wrong (a shape, a frame index,
+    a frame not finite)."""
+    if features.ndim not in (2, 3) or features.shape[-1] != FEATURE_DIM:
+        return None
+    if not (isinstance(first, (int, np.integer)) and 0 <= first < features.shape[-2]):
+        return None
+    if not np.isfinite(features).all():
+        return None
+    from motion_env.generation.compose_jit import gaussian_weights, local_pose
+
+    note_first_compile(local_pose, "the body's local pose")
+    rows = np.ascontiguousarray(features.reshape(-1, *features.shape[-2:]))
+    pose, finite = local_pose(rows, int(first), gaussian_weights(HEADING_SMOOTH_SIGMA), _FACE)
+    return pose.reshape(features.shape[:-2] + pose.shape[-3:]) if finite else None
 
 
 _FACE = np.array(FACE_JOINTS, np.int64)
@@ -300,7 +314,7 @@ _BONE_TARGET = _LENGTHS[BONE_CHILDREN].astype(np.float32)
 _REST = RAW_OFFSETS.astype(np.float64)
 _PARENTS = np.array([max(p, 0) for p in PARENTS], np.int64)
 _ARMS = np.array(ARMS, np.int64)
-_SIDES = np.array([-1.0, 1.0])  # each arm's back: np.cross(outward, up), turned for the right arm
+_SIDES = np.array([-1.0, 1.0])  # each arm's sign on np.cross(outward, up): ARMS[0]'s turned
 
 
 def bend_elbows_one_way(joints: np.ndarray) -> None:

@@ -69,7 +69,8 @@ def first_token_path_features(paths: np.ndarray, rate: int) -> np.ndarray:
     """The path features of the first token of each of N root paths at once: (N, T, 3) paths
     (x, z, heading), each starting at a token's first frame -> (N, D_PATH) float32, row n equal to
     ``token_path_features(paths[n], rate)[0]`` (the stream needs only each character's next
-    token's; its paths are checked where they are made)."""
+    token's; its paths are checked where they are made). Compiled
+    (:mod:`motion_env.models.path_features_jit`) where numba runs, the same numbers."""
     path = np.asarray(paths, np.float32).astype(np.float64)
     if jit_enabled() and path.ndim == 3 and path.shape[-1] == 3 and path.shape[1] >= 1:
         from motion_env.models.path_features_jit import first_token_features
