@@ -36,6 +36,7 @@ from __future__ import annotations
 import numpy as np
 
 from motion_env.generation.height_plan import GRAVITY
+from motion_env.models.jit_cache import jit_enabled, note_first_compile
 from motion_env.motion.least_squares import three_point_least_squares
 from motion_env.motion.mass import centre_of_mass
 from motion_env.motion.skeleton import FPS, LEGS
@@ -105,7 +106,23 @@ def _wanted_push(
     (..., 3) with stiffness `k` (...): k (c - p), p the point of the support polygon nearest to
     where the body's own acceleration `accel` (..., 3) would put it (c - accel / k). A body whose
     push can start anywhere under its feet needs no correction; one whose push would have to start
-    outside them is pulled back to their edge. 0 in flight (k = 0)."""
+    outside them is pulled back to their edge. 0 in flight (k = 0). Compiled
+    (:mod:`motion_env.generation.balance_jit`) where numba runs, the same numbers."""
+    if jit_enabled():
+        from motion_env.generation.balance_jit import wanted_push
+
+        note_first_compile(wanted_push, "the floor's push")
+        f64 = np.float64  # contiguous arrays of one layout: numba compiles one version
+        out = wanted_push(
+            np.ascontiguousarray(c, f64).reshape(-1, 3),
+            np.ascontiguousarray(accel, f64).reshape(-1, 3),
+            np.ascontiguousarray(k, f64).reshape(-1),
+            np.ascontiguousarray(points, f64).reshape(-1, 4, 2),
+            np.ascontiguousarray(bearing, bool).reshape(-1, 4),
+            _PAIRS,
+            _TRIANGLES,
+        )
+        return out.reshape(*np.shape(k), 2)
     ch, ah = c[..., [0, 2]], accel[..., [0, 2]]
     safe = np.where(k > 0.0, k, 1.0)[..., None]
     p = _pressure_point(ch - ah / safe, points, bearing)

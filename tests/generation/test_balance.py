@@ -182,3 +182,35 @@ def test_the_stream_keeps_waypoint_frames_in_place_and_leaves_a_held_row_alone()
     balance.reset(0)
     again = balance.shift_rows(np.array([0]), joints[None, :4], contacts[None, :4], [np.zeros(0, np.int64)])
     np.testing.assert_array_equal(again[0], out[0])  # a character started again starts as new
+
+
+def test_the_compiled_push_gives_what_numpy_gives(both_ways) -> None:
+    """balance_jit.wanted_push against _wanted_push's numpy operations, to the bit: random feet
+    with every subset bearing weight (none, one point, a line, a triangle, all four), points on a
+    line and on one spot, wanted points inside and outside, flight (k = 0) and NaN (a stream's
+    first token reads frames not emitted yet)."""
+    from motion_env.generation import balance, balance_jit
+
+    rng = np.random.default_rng(12)
+    m = 400
+    c = rng.normal(0.0, 0.3, (m, 3)) + [0.0, 0.9, 0.0]
+    accel = rng.normal(0.0, 3.0, (m, 3))
+    k = np.where(rng.random(m) < 0.8, rng.uniform(5.0, 40.0, m), 0.0)
+    points = rng.normal(0.0, 0.15, (m, 4, 2))
+    points[:40, 1] = points[:40, 0] + [0.1, 0.0]  # toes beside the ankle: on a line
+    points[:40, 2] = points[:40, 0] + [0.2, 0.0]
+    points[40:60] = points[40:60, :1]  # every point on one spot
+    bearing = rng.random((m, 4)) < 0.5
+    c[60:70, 0] = np.nan
+    accel[70:75] = np.nan
+    k[75:80] = np.nan
+    run = lambda: balance._wanted_push(c, accel, k, points, bearing)  # noqa: E731
+    outputs = both_ways(balance_jit, "wanted_push", run)
+    np.testing.assert_array_equal(outputs[True], outputs[False])  # NaN where numpy gives NaN
+    assert np.isfinite(outputs[True][80:]).all() and (outputs[True][80:] != 0).any()
+    batched = both_ways(balance_jit, "wanted_push", lambda: balance._wanted_push(
+        c[:80].reshape(4, 20, 3), accel[:80].reshape(4, 20, 3), k[:80].reshape(4, 20),
+        points[:80].reshape(4, 20, 4, 2), bearing[:80].reshape(4, 20, 4),
+    ))  # fmt: skip
+    np.testing.assert_array_equal(batched[True], batched[False])
+    assert batched[True].shape == (4, 20, 2)
