@@ -1,5 +1,5 @@
 """The compiled loops' switch and first use. numba compiles them once per machine (about 50 s
-for all fourteen on the 2-core development CPU: the path controller's roll-out 10-13 and its step
+for all fifteen on the 2-core development CPU: the path controller's roll-out 10-13 and its step
 inputs 1 more, the GPT's step 3, the placement and the IK 4 each, the body's local pose 3) and
 keeps them in its cache; a process that finds no cached copy says so on stderr before it
 compiles, instead of pausing without a word. Without numba (or with ``NUMBA_DISABLE_JIT=1``, which
