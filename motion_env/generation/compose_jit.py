@@ -69,9 +69,10 @@ def _joint(ric, t, j, root_x, root_z, c, s):
 @njit(cache=True, nogil=True, error_model="numpy")
 def local_pose(features, first, weights, face):
     """:func:`~motion_env.generation.recompose.local_pose_from_features` of (B, T, 263) float32
-    `features`, frames first..: (B, T - first, 22, 3) float32, and whether every joint the numpy
-    path checks came out finite. `weights`: the heading's Gaussian taps (:func:`gaussian_weights`
-    of HEADING_SMOOTH_SIGMA); `face`: FACE_JOINTS (right hip, left hip, right and left shoulder)."""
+    `features`, frames first..: (B, T - first, 22, 3) float32, and whether every joint and path
+    point the numpy path checks came out finite. `weights`: the heading's Gaussian taps
+    (:func:`gaussian_weights` of HEADING_SMOOTH_SIGMA); `face`: FACE_JOINTS (right hip, left hip,
+    right and left shoulder)."""
     batch, frames, joints = features.shape[0], features.shape[1], 22
     out = np.empty((batch, frames - first, joints, 3), np.float32)
     root_x, root_z, cos_h, sin_h = np.empty(frames), np.empty(frames), np.empty(frames), np.empty(frames)
@@ -108,6 +109,7 @@ def local_pose(features, first, weights, face):
             # local_pose_from_joints: the float32 path's pelvis taken off, its heading turned back
             path_x, path_z = np.float64(np.float32(root_x[t])), np.float64(np.float32(root_z[t]))
             turn = -np.float64(np.float32(smoothed[t]))
+            finite = finite and math.isfinite(path_x) and math.isfinite(path_z) and math.isfinite(turn)
             c, s = math.cos(turn), math.sin(turn)
             for j in range(joints):
                 if j == 0:

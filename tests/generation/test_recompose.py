@@ -278,6 +278,10 @@ def test_the_compiled_local_pose_gives_what_numpy_gives(both_ways: Callable, hum
     bad[7, 100] = np.nan
     with pytest.raises(ValueError, match="frames \\[7\\]"):  # the numpy path names the frame
         rc.local_pose_from_features(bad, 3)
+    huge = features.copy()
+    huge[:, 4:] = np.float32(3e38)  # joints past float32's range: numpy's check names them
+    with np.errstate(over="ignore", invalid="ignore"), pytest.raises(ValueError, match="infinite"):
+        rc.local_pose_from_features(huge, 3)
 
 
 def test_the_compiled_heading_and_placement_give_what_numpy_gives(both_ways: Callable) -> None:
