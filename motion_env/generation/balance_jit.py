@@ -16,16 +16,9 @@ import math
 import numpy as np
 from numba import njit
 
+from motion_env.models.jit_math import clip
+
 __all__ = ["wanted_push"]
-
-
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _clip01(value):
-    """``np.clip(value, 0.0, 1.0)``, NaN kept as numpy keeps it."""
-    if math.isnan(value):
-        return value
-    value = value if value > 0.0 else 0.0  # numpy's max, then its min
-    return value if value < 1.0 else 1.0
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -60,7 +53,7 @@ def _pressure_point(wx, wy, points, bearing, pairs, triangles):
         a, b = pairs[n, 0], pairs[n, 1]
         abx, aby = points[b, 0] - points[a, 0], points[b, 1] - points[a, 1]
         along = ((wx - points[a, 0]) * abx + (wy - points[a, 1]) * aby) / max(abx * abx + aby * aby, 1e-12)
-        t = _clip01(along)
+        t = clip(along, 0.0, 1.0)
         nx, ny = points[a, 0] + t * abx, points[a, 1] + t * aby
         d = (nx - wx) ** 2 + (ny - wy) ** 2 if bearing[a] and bearing[b] else np.inf
         # np.argmin: the first NaN, else the first smallest (segment 0 where every one is inf)

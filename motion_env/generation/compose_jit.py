@@ -21,8 +21,8 @@ from functools import lru_cache
 import numpy as np
 from numba import njit
 
-from motion_env.generation.ik_jit import solve
-from motion_env.models.jit_math import unwrap, wrap
+from motion_env.generation.ik_jit import dot, solve
+from motion_env.models.jit_math import clip, unwrap, wrap
 
 __all__ = [
     "arms_on_lengths",
@@ -152,8 +152,8 @@ def travel_heading(paths, speed_weights, angle_weights, ramp, max_offset, fps): 
             else:
                 speed, travel = 0.0, heading[t]
             offset = wrap(travel - heading[t])
-            w_speed = min(max((speed - ramp[0]) / ramp[1], 0.0), 1.0)
-            w_angle = min(max((1.5 * max_offset - abs(offset)) / max_offset, 0.0), 1.0)
+            w_speed = clip((speed - ramp[0]) / ramp[1], 0.0, 1.0)
+            w_angle = clip((1.5 * max_offset - abs(offset)) / max_offset, 0.0, 1.0)
             weighted[t] = w_speed * w_angle * offset
         _smooth(weighted[:frames], angle_weights, correction)
         for t in range(frames):
@@ -181,16 +181,9 @@ def place_on_path(local, paths):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _clip(value, low, high):
-    """``np.clip`` of one number (its max, then its min, as numpy's loop takes them)."""
-    value = value if value > low else low
-    return value if value < high else high
-
-
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _norm(v0, v1, v2):
     """``np.linalg.norm`` of one 3-vector, summed in numpy's order."""
-    return math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    return math.sqrt(dot(v0, v1, v2, v0, v1, v2))
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -257,7 +250,7 @@ def _arm_goal(flat, dec, f, shoulder, elbow, wrist, other, side, scale_range):
     scaled to the arm's length) and its bend hint (back and out): six numbers."""
     length = _arm_length(flat, f, shoulder, elbow, wrist)
     decoded = _arm_length(dec, f, shoulder, elbow, wrist)
-    scale = _clip(length / max(decoded, 1e-9), scale_range[0], scale_range[1])
+    scale = clip(length / max(decoded, 1e-9), scale_range[0], scale_range[1])
     g0 = flat[f, shoulder, 0] + (dec[f, wrist, 0] - dec[f, shoulder, 0]) * scale
     g1 = flat[f, shoulder, 1] + (dec[f, wrist, 1] - dec[f, shoulder, 1]) * scale
     g2 = flat[f, shoulder, 2] + (dec[f, wrist, 2] - dec[f, shoulder, 2]) * scale
@@ -346,8 +339,8 @@ def _bend_elbows(flat, arms, sagittal_full, down_full):
             t = _elbow_terms(flat, f, arms[a, 0], arms[a, 1], arms[a, 2], left)
             for c in range(11):
                 terms[f, a, c] = t[c]
-            weight = _clip((t[9] - 0.3) / (sagittal_full - 0.3), 0.0, 1.0)
-            weight *= _clip((t[10] - 0.2) / (down_full - 0.2), 0.0, 1.0)
+            weight = clip((t[9] - 0.3) / (sagittal_full - 0.3), 0.0, 1.0)
+            weight *= clip((t[10] - 0.2) / (down_full - 0.2), 0.0, 1.0)
             wrong = max(0.0, -(t[3] * t[6] + t[4] * t[7] + t[5] * t[8]))
             terms[f, a, 9], terms[f, a, 10] = weight, wrong
             moves = moves or weight * wrong != 0.0

@@ -300,11 +300,8 @@ def _on_bone_lengths_compiled(joints: np.ndarray) -> np.ndarray:
     x = np.ascontiguousarray(np.moveaxis(flat.astype(np.float32), -2, 0)).reshape(NUM_JOINTS, -1)
     for _ in range(FIT_ITERATIONS):
         x = x - BONE_SHARE @ bone_excess(x, _BONE_TARGET, BONE_CHILDREN, BONE_PARENTS)
-    constants = np.array(
-        [1.0 / ARM_SCALE, ARM_SCALE, ARM_BEND_HINT, ARM_BEND_FILL, ELBOW_SAGITTAL, ELBOW_DOWN]
-    )
     out = arms_on_lengths(
-        x, np.ascontiguousarray(flat[:, 0]), flat, _LENGTHS, _REST, _PARENTS, _ARMS, _SIDES, constants
+        x, np.ascontiguousarray(flat[:, 0]), flat, _LENGTHS, _REST, _PARENTS, _ARMS, _SIDES, _ARM_CONSTANTS
     )
     return out.reshape(checked.shape)
 
@@ -315,6 +312,10 @@ _REST = RAW_OFFSETS.astype(np.float64)
 _PARENTS = np.array([max(p, 0) for p in PARENTS], np.int64)
 _ARMS = np.array(ARMS, np.int64)
 _SIDES = np.array([-1.0, 1.0])  # each arm's sign on np.cross(outward, up): ARMS[0]'s turned
+# arms_on_lengths' numbers: the arm's scale range, the bend's hint and fill, the elbows' fades
+_ARM_CONSTANTS = np.array(
+    [1.0 / ARM_SCALE, ARM_SCALE, ARM_BEND_HINT, ARM_BEND_FILL, ELBOW_SAGITTAL, ELBOW_DOWN]
+)
 
 
 def bend_elbows_one_way(joints: np.ndarray) -> None:

@@ -9,7 +9,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["gelu", "unwrap", "wrap"]
+__all__ = ["clip", "gelu", "unwrap", "wrap"]
 
 _PI = math.pi
 _TWO_PI = 2.0 * math.pi
@@ -53,3 +53,12 @@ def unwrap(angles, out):
             correction = 0.0
         total += correction
         out[t] = angles[t] + total
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def clip(value, low, high):
+    """``np.clip`` of one number: its max, then its min, as numpy's loop takes them (a NaN stays)."""
+    if math.isnan(value):
+        return value
+    value = value if value > low else low
+    return value if value < high else high
