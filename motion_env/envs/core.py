@@ -32,11 +32,21 @@ import numpy as np
 
 from motion_env.envs.arena import Obstacle, obstacle_distance, validate_obstacles
 from motion_env.envs.config import OBS_BOUNDS, ROUTE_AHEAD, EnvConfig, validate_text_pool
+from motion_env.models.jit_cache import jit_enabled, note_first_compile
 from motion_env.motion.kinematics import from_heading_frame, to_heading_frame
 from motion_env.motion.skeleton import FPS, NUM_JOINTS
 from motion_env.motion.trajectory import MAX_COORDINATE, validate_waypoints, wrap_angle
 
 _COMMAND_TOLERANCE = 1e-4  # metres: a detour this close to the current one is not re-sent
+# The observation's numeric parts, in its order, with their widths (the caption's comes last).
+_OBS_SIZES = {
+    "root": 4,
+    "target": 2,
+    "route_ahead": 2 * ROUTE_AHEAD,
+    "route_state": 3,
+    "velocity": 3,
+    "pose": 3 * NUM_JOINTS,
+}
 
 
 def _pad_routes(routes: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -195,6 +205,17 @@ class CharacterBatch:
     def command(self, actions: np.ndarray, apply: np.ndarray) -> None:
         """Apply actions (B, 2|3) to the characters where `apply` (B,) is True (see module doc)."""
         cmd = self.to_world(actions)
+        if jit_enabled():
+            asks = _loops().route_commands(
+                cmd, apply, self.route_arr, self.route_count, self.k, self.following, self.command_xz,
+                self.config.snap_radius, _COMMAND_TOLERANCE,
+            )  # fmt: skip
+            for b in np.nonzero(asks >= 0)[0]:
+                self.stream.set_waypoints(self.routes[b][asks[b] :].copy(), index=int(b))
+            detour = np.nonzero(asks == -2)[0]
+            if len(detour):
+                self.stream.set_goals(cmd[detour].astype(np.float32), detour)
+            return
         cols = np.arange(self.route_arr.shape[1])
         dist = np.linalg.norm(self.route_arr[:, :, :2] - cmd[:, None, :], axis=-1)
         on_route = (
@@ -237,6 +258,24 @@ class CharacterBatch:
             self.just_started[rows] = True
         if self.retargeter is not None:
             self.robot_qpos[rows] = self.retargeter.step(joints, rows)[rows].astype(np.float32)
+        if jit_enabled():
+            _loops().track_frame(
+                rows, joints, root, frame, self.fresh, self.pos, self.theta, self.prev_pos,
+                self.prev_theta, self.vel, self.route_arr, self.route_count, self.k, self.following,
+                self.reached, self.command_xz, self.progress, self.arrivals, self.frames,
+                self.config.arrive_radius, float(FPS),
+            )  # fmt: skip
+        else:
+            self._track_frame(rows, joints, root, frame)
+        if len(self.obstacles):
+            self.collisions[rows] += obstacle_distance(self.pos[rows], self.obstacles) < 0.0
+        for b in rows:
+            self.trails[b].append(self.pos[b].copy())
+
+    def _track_frame(self, rows: np.ndarray, joints: np.ndarray, root: np.ndarray, frame: np.ndarray) -> None:
+        """Positions, velocities, route progress and route advance of characters `rows` after
+        their frame `frame` (R,): (R, 22, 3) joints, (R, 3) root state (x, z, heading). Compiled
+        twin: :func:`motion_env.envs.core_jit.track_frame`."""
         fresh = self.fresh[rows]
         pos = joints[:, 0, [0, 2]].astype(np.float64)
         prev_pos = np.where(fresh[:, None], pos, self.pos[rows])
@@ -246,14 +285,10 @@ class CharacterBatch:
         self.fresh[rows] = False
         step = to_heading_frame(pos - prev_pos, root[:, 2]) * FPS
         self.vel[rows] = np.concatenate([step, wrap_angle(root[:, 2] - prev_theta)[:, None] * FPS], axis=1)
-        for b in rows:
-            self.trails[b].append(self.pos[b].copy())
-
         target = self.route_arr[rows, self.k[rows], :2]
         self.progress[rows] += np.linalg.norm(prev_pos - target, axis=1) - np.linalg.norm(
             pos - target, axis=1
         )
-        self.collisions[rows] += obstacle_distance(pos, self.obstacles) < 0.0
         self.frames[rows] += 1
         self._advance_routes(rows, frame)
 
@@ -308,6 +343,15 @@ class CharacterBatch:
     def observations(self) -> dict[str, np.ndarray]:
         """The Waypoints-v0 observation of every character, as (B, ...) float32 arrays."""
         b = len(self.texts)
+        if jit_enabled():
+            obs = {name: np.empty((b, size), np.float32) for name, size in _OBS_SIZES.items()}
+            _loops().observe(
+                self.joints, self.pos, self.theta, self.vel, self.route_arr, self.route_count, self.k,
+                self.following, ROUTE_AHEAD, MAX_COORDINATE, OBS_BOUNDS["target"],
+                OBS_BOUNDS["route_ahead"], OBS_BOUNDS["velocity"], OBS_BOUNDS["pose"], *obs.values(),
+            )  # fmt: skip
+            bound = OBS_BOUNDS["caption"]
+            return {**obs, "caption": np.clip(self.caption, -bound, bound).astype(np.float32)}
         local = to_heading_frame(self.joints[:, :, [0, 2]] - self.pos[:, None, :], self.theta[:, None])
         pose = np.stack([local[..., 0], self.joints[..., 1], local[..., 1]], axis=-1)
         ahead = to_heading_frame(self.route_ahead() - self.pos[:, None], self.theta[:, None])
@@ -340,6 +384,15 @@ class CharacterBatch:
             "reward_collision": -c.collision_penalty * self.collisions,
             "reward_time": -c.time_penalty * self.frames / FPS,
         }
+
+
+def _loops() -> Any:
+    """:mod:`motion_env.envs.core_jit`, imported on first use (numba compiles it once per machine,
+    and says so)."""
+    from motion_env.envs import core_jit as module
+
+    note_first_compile(module.track_frame, "the environments' bookkeeping")
+    return module
 
 
 def make_generator(generator: Any | None, model_path: str | None, device: str) -> Any:
