@@ -18,11 +18,11 @@ from numba import njit
 
 from motion_env.generation.ik_jit import dot, solve
 
-__all__ = ["place_frames"]
+__all__ = ["centre_height", "deepest_reach", "place_frames", "sole_height"]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _centre_height(out, f, weights):
+def centre_height(out, f, weights):
     """The centre of mass's height of frame f (:func:`~motion_env.motion.mass.centre_of_mass`)."""
     total = 0.0
     for j in range(weights.shape[0]):
@@ -31,7 +31,7 @@ def _centre_height(out, f, weights):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _sole(out, f, ankle, toe, flat_ankle, heel_back, toe_front, radius):
+def sole_height(out, f, ankle, toe, flat_ankle, heel_back, toe_front, radius):
     """:func:`~motion_env.generation.ground.sole_heights` of one foot of frame f."""
     b0 = out[f, toe, 0] - out[f, ankle, 0]
     b1 = out[f, toe, 1] - out[f, ankle, 1]
@@ -46,7 +46,7 @@ def _sole(out, f, ankle, toe, flat_ankle, heel_back, toe_front, radius):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _deepest_reach(out, f, hip, knee, ankle, max_stretch):
+def deepest_reach(out, f, hip, knee, ankle, max_stretch):
     """:func:`~motion_env.generation.ground.deepest_reach` of one leg of frame f."""
     l0 = out[f, ankle, 0] - out[f, hip, 0]
     l1 = out[f, ankle, 1] - out[f, hip, 1]
@@ -94,7 +94,7 @@ def place_frames(  # noqa: PLR0913 (one compiled loop: the parameters are its ar
     out = joints.copy()
     lifts = np.zeros(legs.shape[0])
     for f in range(joints.shape[0]):
-        shift = heights[f] - _centre_height(joints, f, weights)
+        shift = heights[f] - centre_height(joints, f, weights)
         for _ in range(passes):
             for j in range(joints.shape[1]):  # each pass starts from the frame as it came, shifted
                 out[f, j, 0], out[f, j, 2] = joints[f, j, 0], joints[f, j, 2]
@@ -102,18 +102,18 @@ def place_frames(  # noqa: PLR0913 (one compiled loop: the parameters are its ar
             # Every leg's lift is measured before any leg moves, as ground_feet measures them.
             for leg in range(legs.shape[0]):
                 hip, knee, ankle, toe = legs[leg, 0], legs[leg, 1], legs[leg, 2], legs[leg, 3]
-                sole = _sole(out, f, ankle, toe, flat_ankle[f], heel_back, toe_front, radius)
+                sole = sole_height(out, f, ankle, toe, flat_ankle[f], heel_back, toe_front, radius)
                 low = clearance[f, leg]
                 on = down[f, leg]
                 lift = -sole if on else max(low - sole, 0.0)
                 if has_pull and not (on or pull[f, leg] <= 0.0):  # let go of the floor: down by its pull
                     lift = max(-pull[f, leg], low - sole)
-                lifts[leg] = max(lift, _deepest_reach(out, f, hip, knee, ankle, max_stretch))
+                lifts[leg] = max(lift, deepest_reach(out, f, hip, knee, ankle, max_stretch))
             for leg in range(legs.shape[0]):
                 if abs(lifts[leg]) > 1e-6:
                     hip, knee, ankle, toe = legs[leg, 0], legs[leg, 1], legs[leg, 2], legs[leg, 3]
                     _lift_leg(out, f, hip, knee, ankle, toe, lifts[leg], hint_weight, hint_length)
-            error = heights[f] - _centre_height(out, f, weights)
+            error = heights[f] - centre_height(out, f, weights)
             if not abs(error) >= tolerance:
                 break
             shift += error

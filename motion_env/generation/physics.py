@@ -33,16 +33,24 @@ same filter given the whole clip at once.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from motion_env.generation.ground import (
     FLAT_ANKLE_HEIGHT,
     FLAT_ANKLE_RANGE,
+    FLIGHT_CLEARANCE,
+    HEEL_BACK,
+    MAX_STRETCH,
     PLANT_REACH,
+    SOLE_RADIUS,
+    SWING_CLEARANCE,
+    SWING_LANDING,
     SWING_RISE,
+    SWING_SPEEDS,
     SWING_STRAIGHT,
+    TOE_FRONT,
     deepest_reach,
     flight_frames,
     place_body,
@@ -52,7 +60,7 @@ from motion_env.generation.ground import (
 )
 from motion_env.generation.height_plan import GRAVITY, STANCE_ACCELERATION, plan_heights
 from motion_env.models.jit_cache import jit_enabled, note_first_compile
-from motion_env.motion.mass import centre_of_mass
+from motion_env.motion.mass import COM_WEIGHTS, centre_of_mass
 from motion_env.motion.rotations import vector_norm
 from motion_env.motion.skeleton import FOOT_JOINTS, FPS, LEGS, NUM_JOINTS
 
@@ -103,6 +111,48 @@ DRAG_STEP = 0.045
 SINK_TOLERANCE = 0.02
 # Height plans per call at most: each finds landings and take-offs the flags missed.
 _REPLANS = 4
+
+
+# measure_frames' numbers (physics_jit), in its order.
+_MEASURE_CONSTANTS = (
+    FLAT_ANKLE_PRIOR * FLAT_ANKLE_HEIGHT,
+    float(FLAT_ANKLE_PRIOR),
+    *FLAT_ANKLE_RANGE,
+    HEEL_BACK,
+    TOE_FRONT,
+    SOLE_RADIUS,
+    DRAG_STEP,
+    MAX_STRETCH,
+    FLIGHT_CLEARANCE,
+    SWING_STRAIGHT,
+    SWING_SPEEDS[0],
+    SWING_SPEEDS[1] - SWING_SPEEDS[0],
+    SWING_CLEARANCE,
+    SWING_RISE,
+    SWING_LANDING,
+    float(FPS),
+    PLANT_REACH,
+    FLOAT_RATE,
+    SINK_TOLERANCE,
+    float(MAX_FLIGHT_FRAMES),
+)
+_LEGS = np.asarray(LEGS, np.int64)
+_FOOT_JOINTS = np.asarray(FOOT_JOINTS, np.int64)
+
+
+class _Measured(NamedTuple):
+    """What :meth:`PhysicsFilter._measure` reads from the new frames of R characters (n each)."""
+
+    flat_ankle: np.ndarray  # (R,) a flat foot's ankle height above its sole
+    soles: np.ndarray  # (R, n, 2) sole heights, left and right
+    com: np.ndarray  # (R, n) decoded heights of the centre of mass
+    lowest: np.ndarray  # (R, n, 2) sole heights with the legs stretched
+    still: np.ndarray  # (R, n, 2) flagged feet not dragged
+    planted: np.ndarray  # (R, n, 2) feet stood on the floor (let down, lifting off excepted)
+    clearance: np.ndarray  # (R, n, 2) lowest sole height of the free feet
+    flights: np.ndarray  # (R, n) in the air, flights no longer than MAX_FLIGHT_FRAMES
+    raw: np.ndarray  # (R, n) wanted heights of the centre of mass
+    support: np.ndarray  # (R, n, 2) feet the body may stand on
 
 
 def _cap_flights(flight: np.ndarray, airborne: np.ndarray, longest: int = MAX_FLIGHT_FRAMES) -> np.ndarray:
@@ -169,26 +219,15 @@ class PhysicsFilter:
         joints = np.asarray(joints, dtype=np.float64)
         flags = np.asarray(contacts) > 0.5
         rows = np.asarray(rows, dtype=np.int64)
-        (r, n), frames = joints.shape[:2], joints.reshape(-1, NUM_JOINTS, 3)
+        n, frames = joints.shape[1], joints.reshape(-1, NUM_JOINTS, 3)
         if not n:
             return joints.astype(np.float32)
-        # What needs no plan is measured for every row at once.
-        flat_ankle = self._flat_ankle(rows, joints, flags)  # (R,)
-        soles = sole_heights(joints, flat_ankle[:, None])  # (R, n, 2)
-        steps, descent = self._steps(rows, joints, soles)
-        flagged = flags.reshape(r, n, 2, 2).any(axis=-1)  # (R, n, 2) left, right
-        planted = self._planted(rows, flagged, steps)
-        still = planted  # flagged and not dragged
-        reach = [
-            -deepest_reach(frames[:, hip], frames[:, knee], frames[:, ankle]) for hip, knee, ankle, _ in LEGS
-        ]
-        lowest = soles - np.stack(reach, axis=-1).reshape(r, n, 2)  # soles with the legs stretched
-        com = centre_of_mass(joints)[..., 1]
-        flight = flight_frames(flags, soles)
-        clearance = self._clearance(rows, joints, planted, steps, descent)
-        planted, clearance = self._settle(rows, flagged, planted, clearance)
-        planted = _lifting_off(planted)
-        heights = self._plan_rows(rows, soles, com, flagged, flight, lowest, still)
+        if jit_enabled():
+            measured = self._measure_compiled(rows, joints, flags)
+        else:
+            measured = self._measure(rows, joints, flags)
+        flat_ankle, soles, com, lowest, still, planted, clearance, flights, raw, support = measured
+        heights = self._plan_rows(rows, soles, com, lowest, still, flights, raw, support)
         down, pull = self._release(rows, soles + (heights - com)[..., None], planted)
         # The legs' re-solve is the costly part: every row's frames at once.
         out = place_body(
@@ -202,6 +241,39 @@ class PhysicsFilter:
         last = min(n, self.HISTORY)  # the next plan continues what was put out
         self.past[rows, -last:] = centre_of_mass(out[:, -last:])[..., 1]
         return out.astype(np.float32)
+
+    def _measure(self, rows: np.ndarray, joints: np.ndarray, flags: np.ndarray) -> _Measured:
+        """What the new frames of characters `rows` ((R, n, 22, 3) float64 `joints`, (R, n, 4) bool
+        contact `flags`) show before their heights are planned, for every row at once; updates
+        their state. Compiled twin: :func:`motion_env.generation.physics_jit.measure_frames`."""
+        r, n = joints.shape[:2]
+        frames = joints.reshape(-1, NUM_JOINTS, 3)
+        flat_ankle = self._flat_ankle(rows, joints, flags)  # (R,)
+        soles = sole_heights(joints, flat_ankle[:, None])  # (R, n, 2)
+        steps, descent = self._steps(rows, joints, soles)
+        flagged = flags.reshape(r, n, 2, 2).any(axis=-1)  # (R, n, 2) left, right
+        still = self._planted(rows, flagged, steps)  # flagged and not dragged
+        reach = [
+            -deepest_reach(frames[:, hip], frames[:, knee], frames[:, ankle]) for hip, knee, ankle, _ in LEGS
+        ]
+        lowest = soles - np.stack(reach, axis=-1).reshape(r, n, 2)  # soles with the legs stretched
+        com = centre_of_mass(joints)[..., 1]
+        flight = flight_frames(flags, soles)
+        clearance = self._clearance(rows, joints, still, steps, descent)
+        planted, clearance = self._settle(rows, flagged, still, clearance)
+        planted = _lifting_off(planted)
+        raw, flights, support = self._wanted(rows, soles, com, flagged, flight)
+        return _Measured(flat_ankle, soles, com, lowest, still, planted, clearance, flights, raw, support)
+
+    def _measure_compiled(self, rows: np.ndarray, joints: np.ndarray, flags: np.ndarray) -> _Measured:
+        """:meth:`_measure` as one compiled pass (:mod:`~motion_env.generation.physics_jit`)."""
+        return _Measured(
+            *_loops().measure_frames(
+                rows, np.ascontiguousarray(joints), np.ascontiguousarray(flags), self.flat, self.feet,
+                self.soles, self.seen, self.moving, self.free, self.lift, self.floating, self.airborne,
+                _LEGS, _FOOT_JOINTS, COM_WEIGHTS, _MEASURE_CONSTANTS,
+            )
+        )  # fmt: skip
 
     def _release(
         self, rows: np.ndarray, soles: np.ndarray, planted: np.ndarray
@@ -243,31 +315,43 @@ class PhysicsFilter:
         mean = total / (self.flat[rows, 1] + FLAT_ANKLE_PRIOR)
         return np.clip(mean, *FLAT_ANKLE_RANGE)
 
-    def _plan_rows(
-        self,
-        rows: np.ndarray,
-        soles: np.ndarray,
-        com: np.ndarray,
-        planted: np.ndarray,
-        flight: np.ndarray,
-        lowest: np.ndarray,
-        still: np.ndarray,
-    ) -> np.ndarray:
-        """The new frames of characters `rows`: (R, n) heights of the centre of mass, from
-        (R, n, 2) sole heights, (R, n) decoded heights of the centre of mass, (R, n, 2) planted
-        feet, (R, n) frames in the air by the flags, (R, n, 2) sole heights with the legs
-        stretched, (R, n, 2) the flagged feet that are not dragged; updates their state. The
-        plans of rows with the same history length are one batched solve (:func:`plan_heights` of
-        the rows), replanned together while some row finds a landing or a take-off; each row
-        keeps its own state (floating estimate, flight caps, history)."""
+    def _wanted(
+        self, rows: np.ndarray, soles: np.ndarray, com: np.ndarray, flagged: np.ndarray, flight: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What the plan of characters `rows` starts from, given (R, n, 2) sole heights, (R, n)
+        decoded heights of the centre of mass, (R, n, 2) flagged feet and (R, n) frames in the air
+        by the flags: (R, n) wanted heights, (R, n) flights no longer than MAX_FLIGHT_FRAMES and
+        (R, n, 2) the feet the body may stand on (the flagged ones; with none, both); updates
+        the floating estimate."""
         r, n = com.shape
-        floating = self._float(rows, support_gap(soles.reshape(-1, 2), planted.reshape(-1, 2)).reshape(r, n))
+        floating = self._float(rows, support_gap(soles.reshape(-1, 2), flagged.reshape(-1, 2)).reshape(r, n))
         # The body is wanted standing on its planted feet, and raised where a foot would still be
         # more than SINK_TOLERANCE below the floor (a landing the flags have not seen: a straight
         # leg cannot shorten).
         raw = com - floating + np.maximum(floating - soles.min(axis=2) - SINK_TOLERANCE, 0.0)
         flights = _cap_flights(flight, self.airborne[rows])
-        support = np.where(planted.any(axis=2, keepdims=True), planted, True)
+        support = np.where(flagged.any(axis=2, keepdims=True), flagged, True)
+        return raw, flights, support
+
+    def _plan_rows(  # noqa: PLR0913 (the measured arrays the plan reads)
+        self,
+        rows: np.ndarray,
+        soles: np.ndarray,
+        com: np.ndarray,
+        lowest: np.ndarray,
+        still: np.ndarray,
+        flights: np.ndarray,
+        raw: np.ndarray,
+        support: np.ndarray,
+    ) -> np.ndarray:
+        """The new frames of characters `rows`: (R, n) heights of the centre of mass, from
+        (R, n, 2) sole heights, (R, n) decoded heights of the centre of mass, (R, n, 2) sole
+        heights with the legs stretched, (R, n, 2) the flagged feet that are not dragged and
+        :meth:`_wanted`'s three arrays; updates their state. The plans of rows with the same
+        history length are one batched solve (:func:`plan_heights` of the rows), replanned
+        together while some row finds a landing or a take-off; each row keeps its own state
+        (flight caps, history)."""
+        r, n = com.shape
         settled = np.zeros((r, n), dtype=bool)  # frames found on the floor: they stay there
         planned, todo, seen = np.empty((r, n)), np.ones(r, dtype=bool), self.seen[rows]
         for _ in range(_REPLANS):
@@ -280,33 +364,60 @@ class PhysicsFilter:
                     self.past[at, keep],
                     self.past_raw[at, keep],
                 )
-            shift = (planned - com)[:, :, None]
-            # A fall that brings a foot to the floor is a landing, whatever the flags say; a body
-            # whose feet cannot reach the floor is in the air, and so is one whose feet the
-            # grounding leaves alone (ground.PLANT_REACH above the floor: a small hop whose slow
-            # feet keep their contact flags; in the air for the replay, it must fall freely).
-            landed = flights & ((soles + shift).min(axis=2) < 0.0) & todo[:, None]
-            away = (lowest + shift > UNREACHABLE) | (soles + shift >= PLANT_REACH)
-            aloft = ~flights & ~settled & np.where(support, away, True).all(axis=2) & todo[:, None]
-            # Feet flagged planted, not dragged, yet off the floor for longer than a hop are no
-            # flight: the body is stood on the lowest of them there instead (a decoded crouch
-            # that lifts its feet for 0.7 s, planned as a flight, was launched 40 cm up and
-            # landed with a knee folded through the body). Dragged feet (a run's) stay as they were.
-            long = aloft & ~_cap_flights(flights | aloft, self.airborne[rows], MAX_HOP_FRAMES)
-            stand = long & still.any(axis=2)
-            aloft &= ~stand
-            raw = np.where(stand, com - np.where(still, soles, np.inf).min(axis=2), raw)
-            settled |= stand
-            todo = landed.any(axis=1) | aloft.any(axis=1) | stand.any(axis=1)
+            todo = self._replan(
+                rows, planned, com, soles, lowest, still, support, todo, flights, settled, raw
+            )
             if not todo.any():
                 break
-            for k in np.nonzero(landed.any(axis=1))[0]:
-                first = int(np.argmax(landed[k]))
-                end = first + _run_length(flights[k, first:])
-                flights[k, first:end], settled[k, first:end] = False, True
-            flights |= aloft
         self._remember(rows, planned, raw, flights)
         return planned
+
+    def _replan(  # noqa: PLR0913 (the plan's arrays)
+        self,
+        rows: np.ndarray,
+        planned: np.ndarray,
+        com: np.ndarray,
+        soles: np.ndarray,
+        lowest: np.ndarray,
+        still: np.ndarray,
+        support: np.ndarray,
+        todo: np.ndarray,
+        flights: np.ndarray,
+        settled: np.ndarray,
+        raw: np.ndarray,
+    ) -> np.ndarray:
+        """What the plans (R, n) of the rows still to plan (`todo` (R,)) show: landings the flags
+        missed, take-offs, feet held up longer than a hop; `flights`, `settled` and `raw` updated
+        in place for the next plan; returns (R,) the rows to plan again. Compiled twin:
+        :func:`motion_env.generation.physics_jit.replan_frames`."""
+        if jit_enabled():
+            return _loops().replan_frames(
+                planned, com, soles, lowest, still, support, self.airborne[rows], todo, flights, settled,
+                raw, UNREACHABLE, PLANT_REACH, MAX_HOP_FRAMES,
+            )  # fmt: skip
+        shift = (planned - com)[:, :, None]
+        # A fall that brings a foot to the floor is a landing, whatever the flags say; a body
+        # whose feet cannot reach the floor is in the air, and so is one whose feet the
+        # grounding leaves alone (ground.PLANT_REACH above the floor: a small hop whose slow
+        # feet keep their contact flags; in the air for the replay, it must fall freely).
+        landed = flights & ((soles + shift).min(axis=2) < 0.0) & todo[:, None]
+        away = (lowest + shift > UNREACHABLE) | (soles + shift >= PLANT_REACH)
+        aloft = ~flights & ~settled & np.where(support, away, True).all(axis=2) & todo[:, None]
+        # Feet flagged planted, not dragged, yet off the floor for longer than a hop are no
+        # flight: the body is stood on the lowest of them there instead (a decoded crouch
+        # that lifts its feet for 0.7 s, planned as a flight, was launched 40 cm up and
+        # landed with a knee folded through the body). Dragged feet (a run's) stay as they were.
+        long = aloft & ~_cap_flights(flights | aloft, self.airborne[rows], MAX_HOP_FRAMES)
+        stand = long & still.any(axis=2)
+        aloft &= ~stand
+        raw[...] = np.where(stand, com - np.where(still, soles, np.inf).min(axis=2), raw)
+        settled |= stand
+        for k in np.nonzero(landed.any(axis=1))[0]:  # the flight a landing ends is on the floor
+            first = int(np.argmax(landed[k]))
+            end = first + _run_length(flights[k, first:])
+            flights[k, first:end], settled[k, first:end] = False, True
+        flights |= aloft
+        return landed.any(axis=1) | aloft.any(axis=1) | stand.any(axis=1)
 
     def _float(self, rows: np.ndarray, gap: np.ndarray) -> np.ndarray:
         """(R, n) how far the bodies of characters `rows` float above the floor in new frames: the
@@ -314,14 +425,11 @@ class PhysicsFilter:
         floats or sinks throughout is moved, while a foot that lifts early or lands late (whose
         gap is noise between frames) moves no more than itself."""
         last = self.floating[rows]
-        if jit_enabled():
-            out = _loops().float_frames(np.ascontiguousarray(gap), last, FLOAT_RATE)
-        else:
-            out = np.zeros(gap.shape)
-            for t in range(gap.shape[1]):
-                g = gap[:, t]
-                followed = np.where(np.isnan(last), g, last + FLOAT_RATE * (g - last))
-                last = out[:, t] = np.where(np.isnan(g), last, followed)
+        out = np.zeros(gap.shape)
+        for t in range(gap.shape[1]):
+            g = gap[:, t]
+            followed = np.where(np.isnan(last), g, last + FLOAT_RATE * (g - last))
+            last = out[:, t] = np.where(np.isnan(g), last, followed)
         self.floating[rows] = last
         return np.where(np.isnan(out), 0.0, out)
 
@@ -372,12 +480,9 @@ class PhysicsFilter:
         descent = np.where(stretch > SWING_STRAIGHT, np.inf, descent)
         speed = steps.reshape(steps.shape[:2] + (2, 2)).max(axis=-1) * FPS  # (R, n, 2): ankle or toe
         last = self.free[rows]
-        if jit_enabled():
-            free = _loops().clearance_frames(np.ascontiguousarray(planted), last)
-        else:
-            free = np.zeros_like(speed)
-            for t in range(joints.shape[1]):
-                last = free[:, t] = np.where(planted[:, t], 0.0, np.minimum(last + 1, 100))
+        free = np.zeros_like(speed)
+        for t in range(joints.shape[1]):
+            last = free[:, t] = np.where(planted[:, t], 0.0, np.minimum(last + 1, 100))
         self.free[rows] = last
         return swing_clearance(speed, free, descent)
 
@@ -392,10 +497,6 @@ class PhysicsFilter:
         if not self.lift[rows].any() and not (flagged & ~planted).any():
             return planted, clearance  # nothing dragged: nothing to let down
         lift = self.lift[rows]
-        if jit_enabled():
-            planted, clearance = _loops().settle_frames(flagged, planted, clearance, lift, SWING_RISE)
-            self.lift[rows] = lift
-            return planted, clearance
         for t in range(planted.shape[1]):
             dragged = flagged[:, t] & ~planted[:, t]
             settling = planted[:, t] & (lift > 0.0)
@@ -408,6 +509,10 @@ class PhysicsFilter:
     def _remember(self, rows: np.ndarray, heights: np.ndarray, raw: np.ndarray, flight: np.ndarray) -> None:
         """Keep the last frames of characters `rows`: the planned heights (R, n) (:meth:`apply_rows`
         puts in the placed ones), the wanted heights and flight."""
+        if jit_enabled():
+            state = (self.seen, self.past, self.past_raw, self.past_flight, self.airborne)
+            _loops().remember_frames(rows, heights, raw, flight, *state)
+            return
         m = heights.shape[1]
         seen = self.seen[rows]
         for h in np.unique(seen):  # rows with as many frames in the history go together

@@ -9,7 +9,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["clip", "gelu", "unwrap", "wrap"]
+__all__ = ["clip", "gelu", "pairwise_sum", "unwrap", "wrap"]
 
 _PI = math.pi
 _TWO_PI = 2.0 * math.pi
@@ -62,3 +62,30 @@ def clip(value, low, high):
         return value
     value = value if value > low else low
     return value if value < high else high
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def pairwise_sum(values, n):
+    """``values[:n].sum()`` of a float64 line as numpy sums one: sequentially under 8 numbers, in
+    eight running sums up to 128 (combined in pairs, the rest added after), halved above."""
+    if n < 8:
+        total = 0.0
+        for i in range(n):
+            total += values[i]
+        return total
+    if n <= 128:
+        r0, r1, r2, r3 = values[0], values[1], values[2], values[3]
+        r4, r5, r6, r7 = values[4], values[5], values[6], values[7]
+        i = 8
+        while i < n - n % 8:
+            r0, r1, r2, r3 = r0 + values[i], r1 + values[i + 1], r2 + values[i + 2], r3 + values[i + 3]
+            r4, r5, r6, r7 = r4 + values[i + 4], r5 + values[i + 5], r6 + values[i + 6], r7 + values[i + 7]
+            i += 8
+        total = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+        while i < n:
+            total += values[i]
+            i += 1
+        return total
+    half = n // 2
+    half -= half % 8
+    return pairwise_sum(values, half) + pairwise_sum(values[half:], n - half)

@@ -450,11 +450,14 @@ def test_the_flat_ankle_height_is_learnt_from_many_frames_not_a_first_token() ->
     assert abs(later - 0.10) < 0.1 * abs(0.10 - FLAT_ANKLE_HEIGHT) + 0.002
 
 
-def test_the_compiled_frame_loops_give_what_numpy_gives(monkeypatch: pytest.MonkeyPatch) -> None:
-    """physics_jit's four loops against the numpy ones, to the bit: three characters (a jump, a
-    drifting body with noisy contacts whose feet get dragged, a standing one floating up), streamed
-    in tokens of 1-6 frames; every output frame and every carried state equal."""
-    from motion_env.generation import physics_jit
+def test_the_compiled_loops_give_what_numpy_gives(monkeypatch: pytest.MonkeyPatch) -> None:
+    """physics_jit's loops against the numpy operations, to the bit: seven characters (a jump, a
+    drifting body with noisy contacts whose feet get dragged, a standing one floating up, bodies
+    held up without contacts for longer than MAX_FLIGHT_FRAMES, for as long, and high enough to
+    fall for longer, a foot flagged in the air while the other stands unflagged), streamed in
+    tokens of 1-8 frames, then as whole clips (numpy's sums of 8 and more frames, and of more than
+    128); every output frame and every carried state equal."""
+    from motion_env.generation import physics, physics_jit
     from motion_env.models import jit_cache
 
     rng = np.random.default_rng(1)
@@ -464,29 +467,57 @@ def test_the_compiled_frame_loops_give_what_numpy_gives(monkeypatch: pytest.Monk
     drift_contacts = (rng.random((60, 4)) < 0.7).astype(np.float32)
     floating = _standing(60)
     floating[..., 1] += np.linspace(0.0, 0.1, 60, dtype=np.float32)[:, None]
-    joints = np.stack([jump, drift, floating])
     floating_contacts = np.ones((60, 4), np.float32)
     floating_contacts[45:] = 0.0  # its feet free at the end: the counts carry on
-    contacts = np.stack([jump_contacts, drift_contacts, floating_contacts])
+    hovers, hover_contacts = [], []  # held up, no contact flagged: past the cap, at it, and high
+    for lift, frames in ((0.3, MAX_FLIGHT_FRAMES + 6), (0.3, MAX_FLIGHT_FRAMES), (5.0, 30)):
+        hover, flags = _standing(60), np.ones((60, 4), np.float32)
+        hover[10 : 10 + frames, :, 1] += lift
+        flags[10 : 10 + frames] = 0.0
+        hovers.append(hover)
+        hover_contacts.append(flags)
+    rise = np.zeros(60)
+    rise[20:32] = 0.12
+    raised = _left_foot_raised(rise).astype(np.float32)  # flagged up in the air, the other not
+    raised_contacts = np.ones((60, 4), np.float32)
+    raised_contacts[20:32, 2:] = 0.0
+    joints = np.stack([jump, drift, floating, *hovers, raised])
+    contacts = np.stack([jump_contacts, drift_contacts, floating_contacts, *hover_contacts, raised_contacts])
+    clip, clip_contacts = np.concatenate(joints), np.concatenate(contacts)  # 420 frames
     calls = []
     for name in physics_jit.__all__:
         loop = getattr(physics_jit, name)
         counted = lambda *a, _loop=loop, _name=name: calls.append(_name) or _loop(*a)  # noqa: E731
         monkeypatch.setattr(physics_jit, name, counted)
+    capped = []  # flights the numpy path cut at MAX_FLIGHT_FRAMES, carried over from a token or not
+
+    def cap(flight: np.ndarray, airborne: np.ndarray, longest: int = MAX_FLIGHT_FRAMES) -> np.ndarray:
+        out = _cap_flights(flight, airborne, longest)
+        capped.append(bool((flight & ~out).any()) if longest == MAX_FLIGHT_FRAMES else False)
+        return out
+
+    monkeypatch.setattr(physics, "_cap_flights", cap)
     outputs, states = {}, {}
     for compiled in (True, False):
         monkeypatch.setattr(jit_cache, "_enabled", compiled)
-        stage, parts, start = PhysicsFilter(3), [], 0
+        stage, parts, start = PhysicsFilter(len(joints)), [], 0
         for size in (1, 3, 4, 6, 4, 2, 4, 4, 8, 4, 4, 4, 4, 4, 4):
             frames = slice(start, start + size)
-            parts.append(stage.apply_rows(np.arange(3), joints[:, frames], contacts[:, frames]))
+            parts.append(stage.apply_rows(np.arange(len(joints)), joints[:, frames], contacts[:, frames]))
             start += size
-        outputs[compiled] = np.concatenate(parts, axis=1)
-        states[compiled] = [getattr(stage, k).copy() for k in ("pull", "floating", "free", "lift", "past")]
+        outputs[compiled] = [np.concatenate(parts, axis=1)]
+        state = ("pull", "floating", "free", "lift", "past", "flat", "feet", "soles", "moving", "airborne")
+        states[compiled] = [getattr(stage, k).copy() for k in state]
+        for n in (9, 60, 420):  # whole clips
+            whole = PhysicsFilter(1)
+            outputs[compiled].append(whole.apply(0, clip[:n], clip_contacts[:n]))
+            states[compiled].append(whole.flat.copy())
     assert set(calls) == set(physics_jit.__all__)  # every compiled loop ran
-    np.testing.assert_array_equal(outputs[True], outputs[False])
+    for got, want in zip(outputs[True], outputs[False], strict=True):
+        np.testing.assert_array_equal(got, want)
     for got, want in zip(states[True], states[False], strict=True):
         np.testing.assert_array_equal(got, want)
+    assert any(capped)  # the case is not trivial: a flight past the cap
 
 
 @pytest.mark.parametrize("with_pull", [True, False])
@@ -523,3 +554,16 @@ def test_the_compiled_placement_gives_what_numpy_gives(both_ways: Callable, with
     moved = np.abs(outputs[False] - joints).max(axis=(1, 2))
     assert (moved > 1e-3).mean() > 0.5  # the case is not trivial: most frames were placed
     np.testing.assert_array_equal(outputs[True], outputs[False])
+
+
+def test_the_compiled_sum_adds_as_numpy_does() -> None:
+    """jit_math.pairwise_sum against numpy's sum, to the bit, at every length to 300 and beyond
+    (numpy adds in eight running sums from 8 numbers, halves the line above 128), on numbers of
+    many magnitudes, where the order of the sums shows."""
+    from motion_env.models.jit_math import pairwise_sum
+
+    rng = np.random.default_rng(0)
+    for n in [*range(300), 513, 1000, 4001]:
+        line = rng.normal(size=n) * 10.0 ** rng.integers(-6, 6, size=n)
+        assert pairwise_sum(line, n) == line.sum(), n
+        assert pairwise_sum(line, n // 2) == line[: n // 2].sum(), n
