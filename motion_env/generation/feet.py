@@ -80,6 +80,7 @@ ANKLE_MIN_ANGLE = 60.0
 # clip (or token) are checked frame by frame.
 ANKLE_BISECTIONS, ANKLE_TOLERANCE = 6, 0.5
 _ANKLE_PASSES = 4  # passes of the pins over a leg's frames at most (FootPinner.apply_rows)
+_LEGS = np.asarray(LEGS, np.int64)  # (legs, 4) hip, knee, ankle, toe, for the compiled passes
 
 
 def release_fade(since: np.ndarray) -> np.ndarray:
@@ -302,6 +303,8 @@ class FootPinner:
         (R, n, 22, 3) of characters `rows`, flags (R, n, 4) > 0.5; updates the pins. In the frames
         and legs of `check` (R, n, legs) the correction is cut to its ankle_room (and the pin slides
         with it)."""
+        if not check.any() and jit_enabled():  # no pin is cut: compiled (feet_jit)
+            return self._pin_compiled(rows, joints, flags)
         ankles, toes = [leg[2] for leg in LEGS], [leg[3] for leg in LEGS]
         # What each frame asks of each leg, before the frame loop: the ankle's flag wins; the toe
         # alone is pinned while the heel lifts; the pinned joint's place.
@@ -326,40 +329,30 @@ class FootPinner:
         pin = np.where(held[:, 0, :, None], first, np.nan)  # (R, legs, 2)
         glide, offset = self.glide[rows], self.offset[rows]
         released, since = self.released[rows], self.since[rows]
-        if not check.any() and jit_enabled():  # no pin is cut: the loop below, compiled (feet_jit)
-            from motion_env.generation.feet_jit import pin_frames
-
-            note_first_compile(pin_frames, "the foot pinner's frame loop")
-            constants = (FOOT_GLIDE, FOOT_CREEP_RATE, FOOT_CREEP, FOOT_MAX_OFFSET, FOOT_BLEND)
-            state = (pin, glide, offset, released, since)  # updated in place
-            offsets = pin_frames(held, fresh, shown, fresh_glide, *state, *constants)
-        else:
-            offsets = np.zeros(kinds.shape + (2,))
-            for t in range(joints.shape[1]):
-                h, f, xz = held[:, t], fresh[:, t], shown[:, t]  # (R, legs), (R, legs), (R, legs, 2)
-                since = np.where(h, 0, since + 1)
-                # A held pin glides on by the glide it has (which then halves), a fresh one starts
-                # where its foot is shown now, with the correction the leg had.
-                target = np.where(f[..., None], xz + offset, pin + glide)
-                held_glide = np.where(f[..., None], fresh_glide[:, t], glide * FOOT_GLIDE)
-                glide = np.where(h[..., None], held_glide, glide)  # (a free leg's glide is never read)
-                moved = target - xz
-                dist = vector_norm(moved)
-                creep = np.where(f, 0.0, np.minimum(FOOT_CREEP_RATE * dist, FOOT_CREEP))
-                moved = moved * (1.0 - creep / np.maximum(dist, 1e-12))[..., None]
-                norm = vector_norm(moved)
-                far = np.where(norm > FOOT_MAX_OFFSET, FOOT_MAX_OFFSET / np.maximum(norm, 1e-12), 1.0)
-                moved = moved * far[..., None]
-                cut = h & check[:, t]
-                for leg in np.nonzero(cut.any(axis=0))[0]:
-                    at = np.nonzero(cut[:, leg])[0]
-                    moved[at, leg] *= ankle_room(joints[at, t], leg, moved[at, leg])[:, None]
-                # The pin slides with the foot where it is cut.
-                pin = np.where(h[..., None], xz + moved, np.nan)
-                released = np.where(h[..., None], moved, released)
-                offset = offsets[:, t] = np.where(
-                    h[..., None], moved, released * release_fade(since)[..., None]
-                )
+        offsets = np.zeros(kinds.shape + (2,))
+        for t in range(joints.shape[1]):
+            h, f, xz = held[:, t], fresh[:, t], shown[:, t]  # (R, legs), (R, legs), (R, legs, 2)
+            since = np.where(h, 0, since + 1)
+            # A held pin glides on by the glide it has (which then halves), a fresh one starts
+            # where its foot is shown now, with the correction the leg had.
+            target = np.where(f[..., None], xz + offset, pin + glide)
+            held_glide = np.where(f[..., None], fresh_glide[:, t], glide * FOOT_GLIDE)
+            glide = np.where(h[..., None], held_glide, glide)  # (a free leg's glide is never read)
+            moved = target - xz
+            dist = vector_norm(moved)
+            creep = np.where(f, 0.0, np.minimum(FOOT_CREEP_RATE * dist, FOOT_CREEP))
+            moved = moved * (1.0 - creep / np.maximum(dist, 1e-12))[..., None]
+            norm = vector_norm(moved)
+            far = np.where(norm > FOOT_MAX_OFFSET, FOOT_MAX_OFFSET / np.maximum(norm, 1e-12), 1.0)
+            moved = moved * far[..., None]
+            cut = h & check[:, t]
+            for leg in np.nonzero(cut.any(axis=0))[0]:
+                at = np.nonzero(cut[:, leg])[0]
+                moved[at, leg] *= ankle_room(joints[at, t], leg, moved[at, leg])[:, None]
+            # The pin slides with the foot where it is cut.
+            pin = np.where(h[..., None], xz + moved, np.nan)
+            released = np.where(h[..., None], moved, released)
+            offset = offsets[:, t] = np.where(h[..., None], moved, released * release_fade(since)[..., None])
         last = kinds[:, -1]  # the pin of the last frame's kind is kept, the other is none
         for kind in (0, 1):
             pins[:, :, kind] = np.where((last == kind)[..., None], pin, np.nan)
@@ -368,12 +361,40 @@ class FootPinner:
         self.shown[rows] = both[:, -1]
         return offsets
 
+    def _pin_compiled(self, rows: np.ndarray, joints: np.ndarray, flags: np.ndarray) -> np.ndarray:
+        """:meth:`_pin` where no pin is cut, as one compiled pass (:mod:`~motion_env.generation.feet_jit`)."""
+        from motion_env.generation.feet_jit import pin_rows
+
+        note_first_compile(pin_rows, "the foot pinner")
+        fields = (self.pins, self.shown, self.glide, self.offset, self.released, self.since)
+        state = [a[rows] for a in fields]  # updated in place, then put back
+        constants = (FOOT_GLIDE, FOOT_GLIDE_STEP, FOOT_CREEP_RATE, FOOT_CREEP, FOOT_MAX_OFFSET, FOOT_BLEND)
+        offsets = pin_rows(
+            np.ascontiguousarray(joints), np.ascontiguousarray(flags), *state, _LEGS, *constants
+        )
+        for a, value in zip(fields, state, strict=True):
+            a[rows] = value
+        return offsets
+
 
 def _re_solve(out: np.ndarray, decoded: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     """The legs of the frames `out` (R, n, 22, 3) re-solved for their ankles moved horizontally by
     `offsets` (R, n, legs, 2) (in place; `decoded`: the frames as they came; one IK call for every
     leg, which reads and writes only its own joints); returns (R, n, legs) the frames whose
     shin-foot angle ended narrower than ankle_room allows, and the frame on each side."""
+    if jit_enabled():
+        from motion_env.generation.feet_jit import re_solve_rows
+
+        note_first_compile(re_solve_rows, "the foot pinner's leg re-solve")
+        constants = (
+            FOOT_STRETCH,
+            FOOT_SOFTNESS,
+            HINT_WEIGHT,
+            TOE_HINT_LENGTH,
+            ANKLE_MIN_ANGLE,
+            ANKLE_TOLERANCE,
+        )
+        return re_solve_rows(out, decoded, np.ascontiguousarray(offsets), _LEGS, *constants)
     chains = np.asarray(LEGS)  # (legs, 4) hip, knee, ankle, toe
     out[..., chains.reshape(-1), :] = decoded[..., chains.reshape(-1), :]  # frames left alone: exact
     bent = np.zeros(offsets.shape[:3], dtype=bool)

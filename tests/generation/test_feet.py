@@ -403,11 +403,17 @@ def test_ankle_room_takes_the_whole_correction_where_the_leg_allows() -> None:
     np.testing.assert_array_equal(ankle_room(rows, 0, offset), 1.0)
 
 
-def test_the_compiled_frame_loop_pins_as_numpy_does(both_ways: Callable) -> None:
-    """feet_jit's loop against the numpy one, to the bit: frames of a walking pose with noise,
-    contacts on and off (heels, toes, both feet), in tokens of 1, 3 and 8 frames for 3 characters,
-    every output and every carried state equal."""
-    from motion_env.generation import feet_jit
+def test_the_compiled_pinner_pins_as_numpy_does(both_ways: Callable, monkeypatch: pytest.MonkeyPatch) -> None:
+    """feet_jit's passes (the pins and the legs' re-solve) against numpy's operations, to the bit:
+    frames of a walking pose with noise, contacts on and off (heels, toes, both feet), the body
+    drifting over its planted feet until pins give way at the ankle, in tokens of 1, 3 and 8
+    frames for 3 characters, every output and every carried state equal."""
+    from motion_env.generation import feet, feet_jit
+
+    solves, cuts = [], []
+    re_solve = feet_jit.re_solve_rows
+    monkeypatch.setattr(feet_jit, "re_solve_rows", lambda *a: solves.append(1) or re_solve(*a))
+    monkeypatch.setattr(feet, "ankle_room", lambda *a: cuts.append(1) or ankle_room(*a))
 
     rng = np.random.default_rng(0)
     rows, n = 3, 48
@@ -425,8 +431,38 @@ def test_the_compiled_frame_loop_pins_as_numpy_does(both_ways: Callable) -> None
         names = ("pins", "offset", "released", "since", "glide", "shown")
         return [np.concatenate(parts, axis=1), *(getattr(pinner, k) for k in names)]
 
-    # Most tokens run the compiled loop (a pin cut to its ankle's room runs numpy's).
-    outputs = both_ways(feet_jit, "pin_frames", run, min_calls=6)
+    # Most tokens run the compiled pins (a pin cut to its ankle's room runs numpy's); every
+    # token's legs are re-solved compiled.
+    outputs = both_ways(feet_jit, "pin_rows", run, min_calls=6)
+    assert len(solves) >= 8 and cuts  # and pins were cut at the ankle (numpy's pins, compiled legs)
     for got, want in zip(outputs[True], outputs[False], strict=True):  # the frames, then every state
         np.testing.assert_array_equal(got, want)
     assert np.abs(outputs[True][0] - joints).max() > 0.01  # the feet were moved: the test means something
+
+
+def test_the_compiled_leg_re_solve_gives_what_numpy_gives(both_ways: Callable) -> None:
+    """feet_jit.re_solve_rows against _re_solve's numpy operations, to the bit: noisy poses, some
+    with toes flexed up past ANKLE_MIN_ANGLE already, ankles moved by nothing, a little or far
+    (goals beyond the leg's soft reach, shins bent past the floor): the legs and the frames
+    marked bent, with the frame on each side."""
+    from motion_env.generation import feet, feet_jit
+
+    rng = np.random.default_rng(5)
+    rows, n = 3, 40
+    decoded = np.repeat(_pose()[None, None], rows, axis=0).repeat(n, axis=1).astype(np.float64)
+    decoded += rng.normal(scale=0.02, size=decoded.shape)
+    for *_, toe in LEGS:  # toes pulled up towards the shin in a third of the frames
+        flexed = rng.random((rows, n)) < 0.3
+        decoded[flexed, toe, 1] += 0.12
+    offsets = rng.normal(scale=0.12, size=(rows, n, len(LEGS), 2))
+    offsets[rng.random((rows, n, len(LEGS))) < 0.3] = 0.0
+
+    def run() -> tuple[np.ndarray, np.ndarray]:
+        out = decoded.copy()
+        return out, feet._re_solve(out, decoded, offsets)
+
+    outputs = both_ways(feet_jit, "re_solve_rows", run)
+    for got, want in zip(outputs[True], outputs[False], strict=True):
+        np.testing.assert_array_equal(got, want)
+    floors = np.stack([_shin_foot(decoded.reshape(-1, 22, 3), leg) for leg in range(len(LEGS))], -1)
+    assert (floors < ANKLE_MIN_ANGLE).any() and 0.1 < outputs[False][1].mean() < 0.9  # both kinds
