@@ -38,7 +38,7 @@ import numpy as np
 from motion_env.generation.height_plan import GRAVITY
 from motion_env.models.jit_cache import jit_enabled, note_first_compile
 from motion_env.motion.least_squares import three_point_least_squares
-from motion_env.motion.mass import centre_of_mass
+from motion_env.motion.mass import COM_WEIGHTS, centre_of_mass
 from motion_env.motion.skeleton import FPS, LEGS
 
 __all__ = ["BALANCE_WEIGHT", "STREAM_HORIZON", "StreamBalance", "balance_shift"]
@@ -54,6 +54,7 @@ _ANCHOR = 1e10  # weight of a frame whose shift is held at zero
 # The sole points' segments (a point with itself: the point) and triangles, by index (_support's order).
 _PAIRS = np.array([(a, b) for a in range(4) for b in range(a, 4)])
 _TRIANGLES = np.array([(a, b, c) for a in range(4) for b in range(a + 1, 4) for c in range(b + 1, 4)])
+_LEGS = np.asarray(LEGS, np.int64)  # hip, knee, ankle, toe of each leg, for the compiled pass
 
 
 def _support(joints: np.ndarray, contacts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -202,9 +203,39 @@ class StreamBalance:
                 waypoints within the token and the horizon after it.
             held: (N,) bool, rows not shifted (joint control: as whole clips, not balanced).
         """
+        joints = np.asarray(joints, np.float64)
+        flags = np.asarray(contacts) > 0.5
+        rate = joints.shape[1]
+        span = 2 + rate + STREAM_HORIZON  # the window: 2 frames emitted, the token, the horizon
+        if jit_enabled() and rate >= 2:  # (a one-frame token keeps numpy's broadcast of it)
+            equations = self._equations_compiled(rows, joints, flags)
+        else:
+            equations = self._equations(rows, joints, flags)
+        coef, rows_rhs, pull, target, first = equations
+        ahead = [np.asarray(f, np.int64) for f in anchors]
+        ahead = [f[(f >= 0) & (f < span - 2)] for f in ahead]  # the window's frames after the emitted
+        for r, frames in enumerate(ahead):
+            pull[r, frames + 2] += _ANCHOR
+        shift = three_point_least_squares(coef, rows_rhs, pull, target)[:, 2 : 2 + rate]
+        shift[first, 0] = 0.0
+        for r, frames in enumerate(ahead):
+            shift[r, frames[frames < rate]] = 0.0  # within 1e-6 m of it already
+        if held is not None:
+            shift[held] = 0.0
+        self._shift[rows] = shift[:, -2:]
+        return shift
+
+    def _equations(
+        self, rows: np.ndarray, joints: np.ndarray, flags: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The least squares of the new token of characters `rows` ((N, R, 22, 3) float64 joints,
+        (N, R, 4) bool contacts) before the anchors ahead: (N, S - 2, 3) coefficients, (N, S - 2, 2)
+        right-hand sides, (N, S) pulls, (N, S, 2) targets, (N,) first tokens, S the window's
+        frames; the state of the last frames moves on. Compiled twin:
+        :func:`motion_env.generation.balance_jit.stream_equations`."""
         n, rate = joints.shape[:2]
         span = 2 + rate + STREAM_HORIZON  # the window: 2 frames emitted, the token, the horizon
-        c, points, bearing = _support(np.asarray(joints, np.float64), np.asarray(contacts))
+        c, points, bearing = _support(joints, flags)
         # The equations centred on the token's frames -1 .. rate - 2 read frames -2 .. rate - 1.
         com = np.concatenate([self._com[rows], c], axis=1)
         accel = (com[:, 2:] - 2.0 * com[:, 1:-1] + com[:, :-2]) * FPS**2
@@ -227,16 +258,19 @@ class StreamBalance:
         pull[first, 2] += _ANCHOR  # a first frame is not shifted
         target = np.zeros((n, span, 2))
         target[:, :2] = self._shift[rows]
-        ahead = [np.asarray(f, np.int64) for f in anchors]
-        ahead = [f[(f >= 0) & (f < span - 2)] for f in ahead]  # the window's frames after the emitted
-        for r, frames in enumerate(ahead):
-            pull[r, frames + 2] += _ANCHOR
-        shift = three_point_least_squares(coef, rows_rhs, pull, target)[:, 2 : 2 + rate]
-        shift[first, 0] = 0.0
-        for r, frames in enumerate(ahead):
-            shift[r, frames[frames < rate]] = 0.0  # within 1e-6 m of it already
-        if held is not None:
-            shift[held] = 0.0
-        self._shift[rows] = shift[:, -2:]
         self._com[rows], self._points[rows], self._bearing[rows] = c[:, -2:], points[:, -1], bearing[:, -1]
-        return shift
+        return coef, rows_rhs, pull, target, first
+
+    def _equations_compiled(
+        self, rows: np.ndarray, joints: np.ndarray, flags: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`_equations` as one compiled pass (:mod:`~motion_env.generation.balance_jit`)."""
+        from motion_env.generation.balance_jit import stream_equations
+
+        note_first_compile(stream_equations, "the stream's balance")
+        constants = (float(FPS**2), GRAVITY, _MIN_HEIGHT, BALANCE_WEIGHT**2, _ANCHOR, STREAM_HORIZON)
+        state = (self._shift, self._com, self._points, self._bearing)
+        return stream_equations(
+            np.asarray(rows, np.int64), np.ascontiguousarray(joints), np.ascontiguousarray(flags), *state,
+            COM_WEIGHTS, _LEGS, _PAIRS, _TRIANGLES, constants,
+        )  # fmt: skip

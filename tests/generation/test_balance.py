@@ -214,3 +214,41 @@ def test_the_compiled_push_gives_what_numpy_gives(both_ways) -> None:
     ))  # fmt: skip
     np.testing.assert_array_equal(batched[True], batched[False])
     assert batched[True].shape == (4, 20, 2)
+
+
+def test_the_compiled_stream_balance_gives_what_numpy_gives(both_ways) -> None:
+    """balance_jit.stream_equations against StreamBalance's numpy operations, to the bit: runs
+    with noise, random contacts (none, some, all) and flights, a crouch, streamed for 3 and for 6 characters
+    at once (banded solves one by one, and the batched dense one), first tokens, a restart, anchors
+    ahead and in the token, a held row; every shift and every carried state equal."""
+    from motion_env.generation import balance_jit
+
+    rng = np.random.default_rng(4)
+    runs = [_run(frames=48, speed=s) for s in (1.0, 2.5, 4.0, 3.0, 2.0, 5.0)]
+    joints = np.stack([r[0] for r in runs]) + rng.normal(0.0, 0.01, (6, 48, 22, 3))
+    contacts = np.stack([r[1] for r in runs])
+    contacts[3:] = (rng.random((3, 48, 4)) < 0.5).astype(np.float64)
+    joints[2, 20:, :, 1] -= 0.7  # a crouch: the centre of mass below the stiffness's floor height
+
+    def run(count: int) -> list[np.ndarray]:
+        balance, out = StreamBalance(count), []
+        for start in range(0, 48, 4):
+            if start == 24:
+                balance.reset(1)
+            anchors = [
+                np.array([2, 9]) if (start // 4 + r) % 3 == 0 else np.zeros(0, np.int64) for r in range(count)
+            ]
+            held = np.arange(count) == (start // 4) % count
+            token = slice(start, start + 4)
+            out.append(
+                balance.shift_rows(
+                    np.arange(count), joints[:count, token], contacts[:count, token], anchors, held
+                )
+            )
+        return [np.concatenate(out, axis=1), balance._shift, balance._com, balance._points, balance._bearing]
+
+    for count in (3, 6):
+        outputs = both_ways(balance_jit, "stream_equations", lambda count=count: run(count), min_calls=12)
+        for got, want in zip(outputs[True], outputs[False], strict=True):
+            np.testing.assert_array_equal(got, want)
+        assert np.abs(outputs[True][0]).max() > 1e-3  # the bodies were moved: the test means something
