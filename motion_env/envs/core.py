@@ -203,7 +203,8 @@ class CharacterBatch:
         return world
 
     def command(self, actions: np.ndarray, apply: np.ndarray) -> None:
-        """Apply actions (B, 2|3) to the characters where `apply` (B,) is True (see module doc)."""
+        """Apply actions (B, 2|3) to the characters where `apply` (B,) is True (see module doc; the
+        route test compiled where numba runs: :func:`motion_env.envs.core_jit.route_commands`)."""
         cmd = self.to_world(actions)
         if jit_enabled():
             asks = _loops().route_commands(
@@ -341,7 +342,8 @@ class CharacterBatch:
         return self.route_arr[np.arange(len(self.texts))[:, None], ahead, :2]
 
     def observations(self) -> dict[str, np.ndarray]:
-        """The Waypoints-v0 observation of every character, as (B, ...) float32 arrays."""
+        """The Waypoints-v0 observation of every character, as (B, ...) float32 arrays (compiled
+        where numba runs: :func:`motion_env.envs.core_jit.observe`)."""
         b = len(self.texts)
         if jit_enabled():
             obs = {name: np.empty((b, size), np.float32) for name, size in _OBS_SIZES.items()}

@@ -508,7 +508,8 @@ class PhysicsFilter:
 
     def _remember(self, rows: np.ndarray, heights: np.ndarray, raw: np.ndarray, flight: np.ndarray) -> None:
         """Keep the last frames of characters `rows`: the planned heights (R, n) (:meth:`apply_rows`
-        puts in the placed ones), the wanted heights and flight."""
+        puts in the placed ones), the wanted heights and flight. Compiled twin:
+        :func:`motion_env.generation.physics_jit.remember_frames`."""
         if jit_enabled():
             state = (self.seen, self.past, self.past_raw, self.past_flight, self.airborne)
             _loops().remember_frames(rows, heights, raw, flight, *state)
