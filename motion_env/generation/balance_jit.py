@@ -19,6 +19,7 @@ import math
 import numpy as np
 from numba import njit
 
+from motion_env.generation.ground_jit import centre
 from motion_env.models.jit_math import clip
 
 __all__ = ["stream_equations", "wanted_push"]
@@ -106,6 +107,7 @@ def stream_equations(  # noqa: PLR0913 (one compiled pass: the balance's arrays 
     pull = np.full((n, span), pull_weight)
     target = np.zeros((n, span, 2))
     first = np.empty(n, np.bool_)
+    frames = joints.reshape((n * rate, joints.shape[2], 3))
     window = np.empty((rate + 2, 3))  # the centre of mass of frames -2 .. rate - 1
     on, bears = np.empty((rate, 4, 2)), np.empty((rate, 4), np.bool_)  # frames -1 .. rate - 2
     for i in range(n):
@@ -115,10 +117,7 @@ def stream_equations(  # noqa: PLR0913 (one compiled pass: the balance's arrays 
                 window[f, d] = com[b, f, d]
         for t in range(rate):
             for d in range(3):
-                total = 0.0
-                for j in range(weights.shape[0]):
-                    total += weights[j] * joints[i, t, j, d]
-                window[t + 2, d] = total
+                window[t + 2, d] = centre(frames, i * rate + t, weights, d)
         for s in range(4):  # the sole points of frame -1, then of the token's frames but its last
             on[0, s, 0], on[0, s, 1], bears[0, s] = points[b, s, 0], points[b, s, 1], bearing[b, s]
         for t in range(1, rate):
@@ -142,7 +141,7 @@ def stream_equations(  # noqa: PLR0913 (one compiled pass: the balance's arrays 
             if known:
                 rhs[i, t, 0], rhs[i, t, 1] = px - ax, pz - az
         for t in range(rate, span - 2):  # the horizon's: the shift's velocity holds
-            coef[i, t, 0], coef[i, t, 1], coef[i, t, 2] = f2, -2.0 * f2 - 0.0, f2
+            coef[i, t, 0], coef[i, t, 1], coef[i, t, 2] = f2, -2.0 * f2, f2
         pull[i, 0] += anchor  # the emitted frames keep their shift
         pull[i, 1] += anchor
         first[i] = math.isnan(com[b, 1, 0])

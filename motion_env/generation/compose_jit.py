@@ -21,7 +21,7 @@ from functools import lru_cache
 import numpy as np
 from numba import njit
 
-from motion_env.generation.ik_jit import dot, solve
+from motion_env.generation.ik_jit import norm, solve
 from motion_env.models.jit_math import clip, unwrap, wrap
 
 __all__ = [
@@ -180,12 +180,6 @@ def place_on_path(local, paths):
     return out
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _norm(v0, v1, v2):
-    """``np.linalg.norm`` of one 3-vector, summed in numpy's order."""
-    return math.sqrt(dot(v0, v1, v2, v0, v1, v2))
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
 def bone_excess(x, target, children, parents):
     """One round of :func:`~motion_env.motion.kinematics.fit_bone_lengths` up to its matrix product:
@@ -218,9 +212,9 @@ def _rebuild(x, pelvis, lengths, rest, parents, out):
             v0 = np.float64(x[j, k]) - np.float64(x[p, k])
             v1 = np.float64(x[j, k + 1]) - np.float64(x[p, k + 1])
             v2 = np.float64(x[j, k + 2]) - np.float64(x[p, k + 2])
-            norm = _norm(v0, v1, v2)
-            if norm > 1e-9:
-                d0, d1, d2 = v0 / max(norm, 1e-9), v1 / max(norm, 1e-9), v2 / max(norm, 1e-9)
+            size = norm(v0, v1, v2)
+            if size > 1e-9:
+                d0, d1, d2 = v0 / max(size, 1e-9), v1 / max(size, 1e-9), v2 / max(size, 1e-9)
             else:
                 d0, d1, d2 = rest[j, 0], rest[j, 1], rest[j, 2]
             for a, d in ((0, d0), (1, d1), (2, d2)):
@@ -233,11 +227,11 @@ def _rebuild(x, pelvis, lengths, rest, parents, out):
 @njit(cache=True, nogil=True, error_model="numpy")
 def _arm_length(joints, f, shoulder, elbow, wrist):
     """An arm's length in frame f: its upper arm's and its forearm's, as numpy sums them."""
-    upper = _norm(
+    upper = norm(
         joints[f, elbow, 0] - joints[f, shoulder, 0], joints[f, elbow, 1] - joints[f, shoulder, 1],
         joints[f, elbow, 2] - joints[f, shoulder, 2],
     )  # fmt: skip
-    fore = _norm(
+    fore = norm(
         joints[f, wrist, 0] - joints[f, elbow, 0], joints[f, wrist, 1] - joints[f, elbow, 1],
         joints[f, wrist, 2] - joints[f, elbow, 2],
     )  # fmt: skip
@@ -259,7 +253,7 @@ def _arm_goal(flat, dec, f, shoulder, elbow, wrist, other, side, scale_range):
     c0 = (o1 * 0.0 - o2 * 1.0) * side
     c1 = (o2 * 0.0 - o0 * 0.0) * side
     c2 = (o0 * 1.0 - o1 * 0.0) * side
-    back, out = max(_norm(c0, c1, c2), 1e-9), max(_norm(o0, o1, o2), 1e-9)
+    back, out = max(norm(c0, c1, c2), 1e-9), max(norm(o0, o1, o2), 1e-9)
     h0, h1, h2 = c0 / back + 0.5 * o0 / out, c1 / back + 0.5 * o1 / out, c2 / back + 0.5 * o2 / out
     return g0, g1, g2, h0, h1, h2
 
@@ -307,7 +301,7 @@ def _elbow_terms(flat, f, s, e, w, left):
     nearest the elbow (3), the elbow's offset from it (3), the posterior (3), weight and wrong."""
     b0, b1, b2 = flat[f, s, 0], flat[f, s, 1], flat[f, s, 2]
     a0, a1, a2 = flat[f, w, 0] - b0, flat[f, w, 1] - b1, flat[f, w, 2] - b2
-    size = max(_norm(a0, a1, a2), 1e-9)
+    size = max(norm(a0, a1, a2), 1e-9)
     a0, a1, a2 = a0 / size, a1 / size, a2 / size
     r0, r1, r2 = flat[f, e, 0] - b0, flat[f, e, 1] - b1, flat[f, e, 2] - b2
     dot = r0 * a0 + r1 * a1 + r2 * a2
@@ -315,7 +309,7 @@ def _elbow_terms(flat, f, s, e, w, left):
     o0, o1, o2 = r0 - p0, r1 - p1, r2 - p2
     l0, l1, l2 = left
     k0, k1, k2 = l1 * a2 - l2 * a1, l2 * a0 - l0 * a2, l0 * a1 - l1 * a0
-    sagittal = _norm(k0, k1, k2)
+    sagittal = norm(k0, k1, k2)
     floor = max(sagittal, 1e-9)
     k0, k1, k2 = k0 / floor, k1 / floor, k2 / floor
     return (b0 + p0, b1 + p1, b2 + p2, o0, o1, o2, k0, k1, k2, sagittal, -a1)
@@ -333,7 +327,7 @@ def _bend_elbows(flat, arms, sagittal_full, down_full):
         right, left_shoulder = arms[0, 0], arms[1, 0]
         l0 = flat[f, right, 0] - flat[f, left_shoulder, 0]
         l2 = flat[f, right, 2] - flat[f, left_shoulder, 2]
-        size = max(_norm(l0, 0.0, l2), 1e-9)
+        size = max(norm(l0, 0.0, l2), 1e-9)
         left = (l0 / size, 0.0 / size, l2 / size)
         for a in range(2):
             t = _elbow_terms(flat, f, arms[a, 0], arms[a, 1], arms[a, 2], left)
@@ -351,7 +345,7 @@ def _bend_elbows(flat, arms, sagittal_full, down_full):
             t = terms[f, a]
             push = 2.0 * t[9] * t[10]
             m0, m1, m2 = t[3] + push * t[6], t[4] + push * t[7], t[5] + push * t[8]
-            size, radius = _norm(m0, m1, m2), _norm(t[3], t[4], t[5])
+            size, radius = norm(m0, m1, m2), norm(t[3], t[4], t[5])
             if size > 1e-9:
                 floor = max(size, 1e-9)
                 m0, m1, m2 = m0 * radius / floor, m1 * radius / floor, m2 * radius / floor

@@ -19,7 +19,7 @@ import math
 import numpy as np
 from numba import njit
 
-from motion_env.generation.ik_jit import dot, solve
+from motion_env.generation.ik_jit import dot, norm, solve
 
 __all__ = ["pin_frames", "pin_rows", "re_solve_rows"]
 
@@ -135,16 +135,11 @@ def pin_rows(  # noqa: PLR0913 (one compiled pass: the pinner's arrays and const
     return offsets
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _length(x0, x1, x2):
-    return math.sqrt(dot(x0, x1, x2, x0, x1, x2))
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
 def _shin_foot_angle(k0, k1, k2, a0, a1, a2, t0, t1, t2):
     """``feet._shin_foot_angle`` of one leg: the angle (degrees) between shin and foot."""
     u0, u1, u2, v0, v1, v2 = k0 - a0, k1 - a1, k2 - a2, t0 - a0, t1 - a1, t2 - a2
-    cos = dot(u0, u1, u2, v0, v1, v2) / max(_length(u0, u1, u2) * _length(v0, v1, v2), 1e-12)
+    cos = dot(u0, u1, u2, v0, v1, v2) / max(norm(u0, u1, u2) * norm(v0, v1, v2), 1e-12)
     return math.acos(min(max(cos, -1.0), 1.0)) * (180.0 / math.pi)
 
 
@@ -174,12 +169,12 @@ def re_solve_rows(  # noqa: PLR0913 (one compiled pass: the legs' arrays and con
                 a0, a1, a2 = decoded[r, t, ankle, 0], decoded[r, t, ankle, 1], decoded[r, t, ankle, 2]
                 f0, f1, f2 = decoded[r, t, toe, 0], decoded[r, t, toe, 1], decoded[r, t, toe, 2]
                 # The goal within the leg's soft reach (feet.soft_reach).
-                length = _length(k0 - h0, k1 - h1, k2 - h2) + _length(a0 - k0, a1 - k1, a2 - k2)
+                length = norm(k0 - h0, k1 - h1, k2 - h2) + norm(a0 - k0, a1 - k1, a2 - k2)
                 band = softness * length
-                reach = min(max(stretch * length, _length(a0 - h0, a1 - h1, a2 - h2) + band), length)
+                reach = min(max(stretch * length, norm(a0 - h0, a1 - h1, a2 - h2) + band), length)
                 start = reach - band
                 v0, v1, v2 = (a0 + ox) - h0, a1 - h1, (a2 + oz) - h2
-                d = _length(v0, v1, v2)
+                d = norm(v0, v1, v2)
                 if d > start:
                     excess = min(max((d - start) / max(band, 1e-9), 0.0), 50.0)
                     limited = start + band * (1.0 - math.exp(-excess))

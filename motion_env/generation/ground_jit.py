@@ -16,17 +16,18 @@ import math
 import numpy as np
 from numba import njit
 
-from motion_env.generation.ik_jit import dot, solve
+from motion_env.generation.ik_jit import dot, norm, solve
 
-__all__ = ["centre_height", "deepest_reach", "place_frames", "sole_height"]
+__all__ = ["centre", "leg_reach", "place_frames", "sole_height"]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def centre_height(out, f, weights):
-    """The centre of mass's height of frame f (:func:`~motion_env.motion.mass.centre_of_mass`)."""
+def centre(out, f, weights, axis):
+    """One coordinate (`axis`: 0 x, 1 height, 2 z) of frame f's centre of mass
+    (:func:`~motion_env.motion.mass.centre_of_mass`)."""
     total = 0.0
     for j in range(weights.shape[0]):
-        total += weights[j] * out[f, j, 1]
+        total += weights[j] * out[f, j, axis]
     return total
 
 
@@ -36,7 +37,7 @@ def sole_height(out, f, ankle, toe, flat_ankle, heel_back, toe_front, radius):
     b0 = out[f, toe, 0] - out[f, ankle, 0]
     b1 = out[f, toe, 1] - out[f, ankle, 1]
     b2 = out[f, toe, 2] - out[f, ankle, 2]
-    length = math.sqrt(dot(b0, b1, b2, b0, b1, b2))
+    length = norm(b0, b1, b2)
     reach = math.sqrt(max(length * length - flat_ankle * flat_ankle, 1e-6))
     turn = math.atan2(b1, math.hypot(b0, b2)) - math.atan2(-flat_ankle, reach)
     up = radius - flat_ankle
@@ -46,21 +47,24 @@ def sole_height(out, f, ankle, toe, flat_ankle, heel_back, toe_front, radius):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def deepest_reach(out, f, hip, knee, ankle, max_stretch):
-    """:func:`~motion_env.generation.ground.deepest_reach` of one leg of frame f."""
+def leg_reach(out, f, hip, knee, ankle, max_stretch):
+    """One leg of frame f: :func:`~motion_env.generation.ground.deepest_reach` (the lowest vertical
+    move of its ankle, <= 0) and how far it is stretched (hip to ankle over thigh plus shin)."""
     l0 = out[f, ankle, 0] - out[f, hip, 0]
     l1 = out[f, ankle, 1] - out[f, hip, 1]
     l2 = out[f, ankle, 2] - out[f, hip, 2]
-    t0 = out[f, knee, 0] - out[f, hip, 0]
-    t1 = out[f, knee, 1] - out[f, hip, 1]
-    t2 = out[f, knee, 2] - out[f, hip, 2]
-    s0 = out[f, ankle, 0] - out[f, knee, 0]
-    s1 = out[f, ankle, 1] - out[f, knee, 1]
-    s2 = out[f, ankle, 2] - out[f, knee, 2]
-    length = math.sqrt(dot(t0, t1, t2, t0, t1, t2)) + math.sqrt(dot(s0, s1, s2, s0, s1, s2))
+    length = norm(
+        out[f, knee, 0] - out[f, hip, 0], out[f, knee, 1] - out[f, hip, 1], out[f, knee, 2] - out[f, hip, 2]
+    )
+    length += norm(
+        out[f, ankle, 0] - out[f, knee, 0],
+        out[f, ankle, 1] - out[f, knee, 1],
+        out[f, ankle, 2] - out[f, knee, 2],
+    )
     squared = dot(l0, l1, l2, l0, l1, l2)
-    reach = max(max_stretch * length, math.sqrt(squared))
-    return -l1 - math.sqrt(max(l1 * l1 + reach * reach - squared, 0.0))
+    span = math.sqrt(squared)
+    reach = max(max_stretch * length, span)
+    return -l1 - math.sqrt(max(l1 * l1 + reach * reach - squared, 0.0)), span / length
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -94,7 +98,7 @@ def place_frames(  # noqa: PLR0913 (one compiled loop: the parameters are its ar
     out = joints.copy()
     lifts = np.zeros(legs.shape[0])
     for f in range(joints.shape[0]):
-        shift = heights[f] - centre_height(joints, f, weights)
+        shift = heights[f] - centre(joints, f, weights, 1)
         for _ in range(passes):
             for j in range(joints.shape[1]):  # each pass starts from the frame as it came, shifted
                 out[f, j, 0], out[f, j, 2] = joints[f, j, 0], joints[f, j, 2]
@@ -108,12 +112,12 @@ def place_frames(  # noqa: PLR0913 (one compiled loop: the parameters are its ar
                 lift = -sole if on else max(low - sole, 0.0)
                 if has_pull and not (on or pull[f, leg] <= 0.0):  # let go of the floor: down by its pull
                     lift = max(-pull[f, leg], low - sole)
-                lifts[leg] = max(lift, deepest_reach(out, f, hip, knee, ankle, max_stretch))
+                lifts[leg] = max(lift, leg_reach(out, f, hip, knee, ankle, max_stretch)[0])
             for leg in range(legs.shape[0]):
                 if abs(lifts[leg]) > 1e-6:
                     hip, knee, ankle, toe = legs[leg, 0], legs[leg, 1], legs[leg, 2], legs[leg, 3]
                     _lift_leg(out, f, hip, knee, ankle, toe, lifts[leg], hint_weight, hint_length)
-            error = heights[f] - centre_height(out, f, weights)
+            error = heights[f] - centre(out, f, weights, 1)
             if not abs(error) >= tolerance:
                 break
             shift += error

@@ -14,7 +14,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["dot", "solve", "solve_rows"]
+__all__ = ["dot", "norm", "solve", "solve_rows"]
 
 _EPS = 1e-8  # motion_env.motion.validation.EPS (qbetween's floor)
 
@@ -23,6 +23,12 @@ _EPS = 1e-8  # motion_env.motion.validation.EPS (qbetween's floor)
 def dot(a0, a1, a2, b0, b1, b2):
     """(a0, a1, a2) . (b0, b1, b2), summed in numpy's order for a last axis of three."""
     return a0 * b0 + a1 * b1 + a2 * b2
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def norm(v0, v1, v2):
+    """``np.linalg.norm`` of one 3-vector, summed in numpy's order."""
+    return math.sqrt(dot(v0, v1, v2, v0, v1, v2))
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

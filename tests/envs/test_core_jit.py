@@ -26,29 +26,23 @@ class _Stream:
 
     def __init__(self, batch: int, seed: int) -> None:
         self.rng = np.random.default_rng(seed)
-        self._root = np.zeros((batch, 3), np.float32)
-        self._emitted = np.zeros(batch, np.int64)
+        self.root_state = np.zeros((batch, 3), np.float32)  # the batch only reads them
+        self.frame_index = np.zeros(batch, np.int64)
         self.calls: list[tuple[Any, ...]] = []
 
-    @property
-    def root_state(self) -> np.ndarray:
-        return self._root.copy()
-
-    @property
-    def frame_index(self) -> np.ndarray:
-        return self._emitted.copy()
-
     def step(self, rows: np.ndarray | None = None) -> np.ndarray:
-        rows = np.arange(len(self._root)) if rows is None else np.asarray(rows)
+        rows = np.arange(len(self.root_state)) if rows is None else np.asarray(rows)
         joints = self.rng.normal(0.0, 0.3, (len(rows), NUM_JOINTS, 3)).astype(np.float32)
         # Pelvises that wander, jump onto a waypoint now and then and turn past +-pi.
-        pelvis = self._root[rows, :2] + self.rng.normal(0.0, 0.4, (len(rows), 2)).astype(np.float32)
+        pelvis = self.root_state[rows, :2] + self.rng.normal(0.0, 0.4, (len(rows), 2)).astype(np.float32)
         onto = self.rng.random(len(rows)) < 0.3
         pelvis[onto] = self.rng.integers(-2, 3, (int(onto.sum()), 2)).astype(np.float32)
         joints[:, 0, 0], joints[:, 0, 2] = pelvis[:, 0], pelvis[:, 1]
-        self._root[rows, :2] = pelvis
-        self._root[rows, 2] = (self._root[rows, 2] + self.rng.normal(0.0, 1.5, len(rows))).astype(np.float32)
-        self._emitted[rows] += 1
+        self.root_state[rows, :2] = pelvis
+        self.root_state[rows, 2] = (self.root_state[rows, 2] + self.rng.normal(0.0, 1.5, len(rows))).astype(
+            np.float32
+        )
+        self.frame_index[rows] += 1
         self.calls.append(("step", rows.tolist()))
         return joints
 
@@ -59,13 +53,13 @@ class _Stream:
         self.calls.append(("set_goals", points.copy(), np.asarray(rows).copy()))
 
     def reset(self, i: int, *args: Any, **kwargs: Any) -> None:
-        self._emitted[i] = 0
+        self.frame_index[i] = 0
 
     def caption_features(self, i: int | None = None) -> np.ndarray:
         return (
             np.full(3, 250.0, np.float32)
             if i is not None
-            else np.full((len(self._root), 3), -250.0, np.float32)
+            else np.full((len(self.root_state), 3), -250.0, np.float32)
         )
 
 
