@@ -55,7 +55,6 @@ class StreamPaths:
         """Roll the controller of `rows` back to their last decoded frame (after a caption/route change)."""
         g = self._pipe
         anchors = np.maximum(self._decoded[rows] - 1, 0)
-        slots = torch.as_tensor(anchors % self._ring, device=g.device)
         rows_t = torch.as_tensor(rows, device=g.device)
         self._front = self._states.restore(self._front, rows_t, torch.as_tensor(anchors, device=g.device))
         changed = np.array([int(i) in self._pending for i in rows], bool)  # a new route waits
@@ -68,7 +67,8 @@ class StreamPaths:
                 self._front, moved, [self._routes[i] for i in moved], checked=True
             )
             moved_t = torch.as_tensor(moved, device=g.device)
-            self._states.queue[moved_t, slots[torch.as_tensor(changed)]] = self._front.queue[moved_t]
+            frames = torch.as_tensor(anchors[changed], device=g.device)
+            self._states.set_queue(moved_t, frames, self._front.queue[moved_t])
         self._dirty[rows] = False
 
     def _advance(self, rows: np.ndarray, targets: np.ndarray) -> None:
@@ -101,7 +101,11 @@ class StreamPaths:
         self._predicted[rows] = short
         if not short.any():
             return
-        sub = self._front.take(torch.as_tensor(rows[short], device=self._pipe.device))
+        ahead = rows[short]
+        # Every row, in order (rows are sorted): the front itself, whose caption projection the
+        # controller has cached (a taken copy would be projected again, and evict it).
+        whole = len(ahead) == self.batch_size
+        sub = self._front if whole else self._front.take(torch.as_tensor(ahead, device=self._pipe.device))
         roots = self._head.predict(self._pipe.controller, sub).cpu().numpy()  # (N, H, 3)
         self._states.record_roots(rows[short], target[short], roots, (last - target)[short])
 
@@ -173,8 +177,7 @@ class StreamPaths:
         paths = raw.copy()
         paths[..., :2] += (committed - raw[:, 0, :2])[:, None]
         steered[..., :2] += (committed - steered[:, 0, :2])[:, None]
-        rows_t = torch.as_tensor(rows, device=self._states.queue.device)
-        queue = self._states.queue[rows_t, torch.as_tensor(slots[:, 0], device=rows_t.device)].tolist()
+        queue = self._states.queue_at(rows, anchor)
         return [
             self._snap_ahead(int(i), int(anchor[n]), paths[n, : count[n]], queue[n], steered[n, : count[n]])[
                 first[n] - anchor[n] :

@@ -1,8 +1,9 @@
 """The compiled loops' switch and first use. numba compiles them once per machine (about a minute
-for the seventeen a clip and an environment use on the 2-core development CPU at half its quiet
-speed: the path controller's roll-out 10-13 s and its step inputs 1 more, the GPT's step 3, the
-placement and the IK 4 each, the body's local pose 3) and keeps them in its cache; a process that
-finds no cached copy says so on stderr before it compiles, instead of pausing without a word.
+for the twenty a clip and an environment use on the 2-core development CPU at half its quiet
+speed, 75 s at 0.52x: the path controller's roll-out 10-13 s and its step inputs 1 more, the
+GPT's step 3, the placement and the IK 4 each, the body's local pose 3) and keeps them in its
+cache; a process that finds no cached copy says so on stderr before it compiles, instead of
+pausing without a word.
 Without numba (or with ``NUMBA_DISABLE_JIT=1``, which would run the loops as Python, element by
 element) the models run numpy's operations instead, the same numbers to float32 rounding."""
 

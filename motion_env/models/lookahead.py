@@ -31,6 +31,7 @@ from motion_env.models.checkpoint import load_checkpoint
 from motion_env.models.controller import ControllerConfig, PathController
 from motion_env.models.controller_state import ControllerState
 from motion_env.models.frame_ops import TORCH, Array, NumpyOps, TorchOps
+from motion_env.models.jit_cache import jit_enabled, note_first_compile
 from motion_env.models.waypoint_features import from_heading_frame_torch
 from motion_env.motion.validation import CheckedConfig, PositiveInt
 
@@ -94,6 +95,9 @@ class LookaheadHead(nn.Module):
         self.register_buffer("in_std", torch.ones(c.input_dim))
         self.register_buffer("out_scale", torch.ones(c.horizon, 3))
         self._numpy = NumpyOps()  # predict's backend for a few characters (PathController.frame_ops)
+        # Whether the numpy backend's MLP runs as a compiled loop (lookahead_jit, numba) or on
+        # numpy's operations (the reference it is tested against); the same to float32 rounding.
+        self.compiled = True
 
     def check_controller(self, controller: PathController, where: str = "look-ahead head") -> None:
         """Raise a ValueError naming `where` when the controller's sizes are not the head's."""
@@ -133,6 +137,15 @@ class LookaheadHead(nn.Module):
         ops = self._numpy
         layers = (*self.layers, self.last)
         weights = ops.weights(tuple(p for layer in layers for p in (layer.weight, layer.bias)))
+        if self.compiled and jit_enabled():
+            from motion_env.models.lookahead_jit import mlp  # numba is imported only when it runs
+
+            note_first_compile(mlp, "the look-ahead head")
+            out = mlp(
+                np.ascontiguousarray(x, np.float32), self.in_mean.numpy(), self.in_std.numpy(),
+                weights[0::2], weights[1::2], self.out_scale.numpy().reshape(-1),
+            )  # fmt: skip
+            return out.reshape(x.shape[0], self.config.horizon, 3)
         h = (x - self.in_mean.numpy()) / self.in_std.numpy()
         for i in range(len(self.layers)):
             h = ops.gelu(ops.linear(h, weights[2 * i], weights[2 * i + 1]))

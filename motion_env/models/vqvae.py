@@ -28,6 +28,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from motion_env.models.frame_ops import gradients_state, numpy_chosen
+from motion_env.models.jit_cache import jit_enabled, note_first_compile
 from motion_env.motion.skeleton import FEATURE_DIM, NUM_JOINTS, RIC
 from motion_env.motion.validation import CheckedConfig, NonNegativeFloat, PositiveInt
 
@@ -301,6 +302,10 @@ class VQVAE(nn.Module):
         return self.decode(recent)[:, -self.rate :]
 
 
+# The most frames (rows x frames of a layer) a compiled product of DecoderStream takes
+# (vqvae_jit.few_rows_linear); more go to BLAS's blocked product, faster there (the development
+# CPU, a 768 x 256 weight: 4 frames 50 against 74 µs, 8 frames 177 against 80).
+FEW_ROWS = 4
 # The most rows a step runs on numpy when DecoderStream.backend is "auto".
 NUMPY_MAX_ROWS = 8
 
@@ -358,6 +363,9 @@ class DecoderStream:
         # Where a step runs (frame_ops.BACKENDS): "auto" (numpy for a few rows on the CPU without
         # gradients, else torch), "torch" or "numpy"; the numpy copies are made here once.
         self.backend = "auto"
+        # Whether a numpy step gathers its taps and multiplies a few rows in compiled loops
+        # (vqvae_jit, numba) or on numpy's operations (the reference it is tested against).
+        self.compiled = True
         self._numpy_ok = ref.device.type == "cpu" and ref.dtype == torch.float32
         if self._numpy_ok:
             mix_biases = [m.mix.bias for m in self._layers if isinstance(m, ResBlock)]
@@ -442,14 +450,15 @@ class DecoderStream:
     def _step_numpy(self, codes: torch.Tensor, index: np.ndarray) -> torch.Tensor:
         """:meth:`step` on numpy: the same layers, the same products."""
         arrays = self._np
+        compiled = self.compiled and jit_enabled()
         x = arrays["codebook"][codes.cpu().numpy()][:, None, :]  # (N, 1, code_dim)
         n = m = 0
         for layer in self._layers:
             if isinstance(layer, CausalConv1d):
-                x, n = self._conv_numpy(layer, x, index, n), n + 1
+                x, n = self._conv_numpy(layer, x, index, n, compiled), n + 1
             elif isinstance(layer, ResBlock):
-                h = np.maximum(self._conv_numpy(layer.conv, np.maximum(x, 0.0), index, n), 0.0)
-                x = x + h @ arrays["mixes"][m] + arrays["mix_biases"][m]
+                h = np.maximum(self._conv_numpy(layer.conv, np.maximum(x, 0.0), index, n, compiled), 0.0)
+                x = x + _product(h, arrays["mixes"][m], arrays["mix_biases"][m], compiled)
                 n, m = n + 1, m + 1
             elif isinstance(layer, Upsample):
                 x = np.repeat(x, 2, axis=1)
@@ -457,14 +466,22 @@ class DecoderStream:
                 x = np.maximum(x, 0.0)
         return torch.from_numpy(x)
 
-    def _conv_numpy(self, conv: CausalConv1d, x: np.ndarray, index: np.ndarray, n: int) -> np.ndarray:
+    def _conv_numpy(
+        self, conv: CausalConv1d, x: np.ndarray, index: np.ndarray, n: int, compiled: bool
+    ) -> np.ndarray:
         """:meth:`_conv` on numpy, writing the history through its view of the cache tensor."""
-        cache = self._np["caches"][n]
-        full = np.concatenate([cache[index], x], axis=1)  # (N, lookback + t, C)
-        cache[index] = full[:, full.shape[1] - conv.lookback :]
-        d, t = conv.dilation[0], x.shape[1]
-        taps = np.concatenate([full[:, j * d : j * d + t] for j in range(conv.kernel_size[0])], axis=-1)
-        return taps @ self._np["weights"][n] + self._np["biases"][n]  # (N, t, C_out)
+        cache, d, t = self._np["caches"][n], conv.dilation[0], x.shape[1]
+        if compiled:
+            from motion_env.models.vqvae_jit import causal_taps
+
+            note_first_compile(causal_taps, "the VQ-VAE decoder's streaming step")
+            taps = causal_taps(cache, np.ascontiguousarray(x), index, d, conv.kernel_size[0])
+            taps = taps.reshape(len(index), t, -1)
+        else:
+            full = np.concatenate([cache[index], x], axis=1)  # (N, lookback + t, C)
+            cache[index] = full[:, full.shape[1] - conv.lookback :]
+            taps = np.concatenate([full[:, j * d : j * d + t] for j in range(conv.kernel_size[0])], axis=-1)
+        return _product(taps, self._np["weights"][n], self._np["biases"][n], compiled)  # (N, t, C_out)
 
     def _conv(self, conv: CausalConv1d, x: torch.Tensor, index: torch.Tensor | slice, n: int) -> torch.Tensor:
         """`conv` on the new inputs `x` (N, t, C) after the cached ones of rows `index` (a slice:
@@ -475,6 +492,17 @@ class DecoderStream:
         d, t = conv.dilation[0], x.shape[1]
         taps = torch.cat([full[:, j * d : j * d + t] for j in range(conv.kernel_size[0])], dim=-1)
         return F.linear(taps, self._weights[n], conv.bias)  # (N, t, C_out)
+
+
+def _product(x: np.ndarray, w: np.ndarray, b: np.ndarray, compiled: bool) -> np.ndarray:
+    """x (N, t, K) @ w (K, C) + b: compiled for a few frames in all (BLAS copies the weight
+    first, :mod:`~motion_env.models.vqvae_jit`), BLAS's product otherwise."""
+    if compiled and x.shape[0] * x.shape[1] <= FEW_ROWS:
+        from motion_env.models.vqvae_jit import few_rows_linear
+
+        flat = np.ascontiguousarray(x.reshape(-1, x.shape[-1]))
+        return few_rows_linear(flat, w, b).reshape(x.shape[0], x.shape[1], -1)
+    return x @ w + b
 
 
 def _numpy_bias(bias: torch.Tensor | None, size: int) -> np.ndarray:

@@ -32,6 +32,7 @@ from motion_env.models.checkpoint import (
 from motion_env.models.gpt import GPTConfig, TokenGPT
 from motion_env.models.normalizer import Normalizer
 from motion_env.models.vqvae import VQVAE, VQVAEConfig
+from motion_env.motion.skeleton import FPS
 from motion_env.motion.validation import Fraction, NonNegativeFloat, PositiveFloat, PositiveInt
 from motion_env.text.encoders import DEFAULT_TEXT_ENCODER, TextEncoder, jitter_embeddings
 from motion_env.training import loop
@@ -62,6 +63,9 @@ class GPTTrainConfig(TrainConfig):
     # clip's chance is its length x (train clips of its action)^-action_balance (index.csv's
     # label; clips without one are one group); 0.5 is the caption adapter's square-root prior.
     action_balance: Annotated[float, "[0, 1]"] = 0.0  # A: length x (action clips)^-A; 0: length alone
+    # Each train clip also played faster and slower (its joints resampled in time, its features
+    # made again from them): the GPT sees three speeds of every motion (0: the clips as they are).
+    time_stretch: Annotated[float, "[0, 0.5]"] = 0.0  # S: each train clip also at speeds 1 - S and 1 + S
     encoder: str = DEFAULT_TEXT_ENCODER  # text encoder name (motion_env.text.load_text_encoder)
     init: str | None = None  # GPT checkpoint (packaged ones too) a fresh run starts from: weights, config
 
@@ -85,6 +89,7 @@ class _TokenSet:
         device: Any,
         offsets: int = 1,
         index: dict[str, dict[str, str]] | None = None,
+        stretch: float = 0.0,
     ) -> None:
         from motion_env.models.path_features import token_path_features
         from motion_env.motion.trajectory import gait_free_path, root_path_from_joints
@@ -103,21 +108,22 @@ class _TokenSet:
             if not clip.captions:
                 continue
             label = (index or {}).get(clip.name.split(":")[0], {}).get("label", "")
-            # The generator's paths come from the path controller, which has no gait in them.
-            whole = gait_free_path(root_path_from_joints(np.asarray(clip.joints, np.float32)))
-            for o in range(offsets):
-                feats = np.asarray(clip.features[o:], np.float32)
-                n = feats.shape[0] // rate
-                if n < 2:
-                    continue
-                x = torch.from_numpy(normalizer.normalize(feats[: n * rate]))[None].to(
-                    device
-                )  # (1, n * rate, 263)
-                self.codes.append(vq.encode(x)[0].cpu())
-                self.path.append(torch.from_numpy(token_path_features(whole[o:], rate)[:n]))
-                self.captions.append(list(clip.captions))
-                self.names.append(clip.name if o == 0 else f"{clip.name}@{o}")
-                self.labels.append(label)
+            for name, features, joints in _speeds(clip, stretch):
+                # The generator's paths come from the path controller, which has no gait in them.
+                whole = gait_free_path(root_path_from_joints(joints))
+                for o in range(offsets):
+                    feats = features[o:]
+                    n = feats.shape[0] // rate
+                    if n < 2:
+                        continue
+                    x = torch.from_numpy(normalizer.normalize(feats[: n * rate]))[None].to(
+                        device
+                    )  # (1, n * rate, 263)
+                    self.codes.append(vq.encode(x)[0].cpu())
+                    self.path.append(torch.from_numpy(token_path_features(whole[o:], rate)[:n]))
+                    self.captions.append(list(clip.captions))
+                    self.names.append(name if o == 0 else f"{name}@{o}")
+                    self.labels.append(label)
         if not self.codes:
             raise ValueError("no clip with at least two tokens and a caption")
         self.lengths = np.array([c.shape[0] for c in self.codes])  # tokens per clip
@@ -130,6 +136,24 @@ class _TokenSet:
 
     def __len__(self) -> int:
         return len(self.codes)
+
+
+def _speeds(clip: Any, stretch: float) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """(name, features, joints) of `clip` as it is and, with `stretch` S > 0, played at speeds
+    1 - S and 1 + S: its joints resampled in time (linearly), its features made from them
+    (:func:`~motion_env.motion.features.joints_to_features`, one frame fewer), named ``name~speed``."""
+    from motion_env.motion.features import joints_to_features
+    from motion_env.motion.kinematics import resample
+
+    joints = np.asarray(clip.joints, np.float32)
+    out = [(clip.name, np.asarray(clip.features, np.float32), joints)]
+    for speed in (1.0 - stretch, 1.0 + stretch) if stretch > 0 else ():
+        moved = resample(joints, FPS * speed, FPS)
+        if len(moved) < 3:
+            continue
+        features = joints_to_features(moved, floor=False)  # the clip is on the floor already
+        out.append((f"{clip.name}~{speed:g}", features.astype(np.float32), moved[: len(features)]))
+    return out
 
 
 def _gpt_batch(
@@ -239,7 +263,9 @@ def train_gpt(
     model_config = _model_config(model_config, vq, text_encoder)
     normalizer = loop.load_normalizer(data_dir)
     train_clips = loop.load_split(data_dir, "train")
-    train = _TokenSet(train_clips, vq, normalizer, device, config.token_offsets, read_index(data_dir))
+    train = _TokenSet(
+        train_clips, vq, normalizer, device, config.token_offsets, read_index(data_dir), config.time_stretch
+    )
     draw = train.draw_weights(config.action_balance)
     val = _TokenSet(loop.load_split(data_dir, "val"), vq, normalizer, device)
     table, caption_row = _embed_captions(text_encoder, [train, val])

@@ -244,6 +244,88 @@ def test_a_ring_restores_every_row_as_it_restores_some() -> None:
     assert torch.equal(whole.hidden[1], trace.hidden[1, 6])  # frame 7: the 7th frame of the run
 
 
+def test_routes_are_set_alike_on_numpy_and_on_torch(monkeypatch: pytest.MonkeyPatch) -> None:
+    """set_routes writes a CPU state's routes on numpy and other devices' on torch (forced here on
+    the CPU): the same waypoints (padded by their last, the tensor widened), counts and queues,
+    a row given twice taking its last route, a row cleared to no route."""
+    import motion_env.models.controller as controller_module
+
+    model = _tiny(4)
+    rng = np.random.default_rng(8)
+    with torch.no_grad():
+        state = model.init_state(
+            torch.randn(5, 16), _routes(rng, 5), generator=torch.Generator().manual_seed(9)
+        )
+        state, _ = model.run(state, 12)
+        long = np.array(
+            [[0.5, 0.5, 20], [1, 1, 30], [2, 2, 40], [3, 3, 50], [4, 4, 60], [5, 5, 70], [6, 6, 80]],
+            np.float32,
+        )
+        state = replace(state, queue=torch.tensor([0, 1, 2, 0, 1]))  # targets past the first
+        rows, routes = [4, 1, 4, 2], [long, np.array([[0.1, 0.2]], np.float32), long[:2], None]
+        got, kept = {}, {}
+        for on_numpy in (True, False):
+            monkeypatch.setattr(controller_module, "_on_numpy", lambda _, on=on_numpy: on)
+            got[on_numpy] = model.set_routes(state, rows, routes)
+            # a route the tensor holds without widening: written into a copy, the state given unchanged
+            before = state.waypoints.clone()
+            kept[on_numpy] = model.set_routes(state, [0], [state.waypoints[3, :2].numpy()])
+            assert torch.allclose(state.waypoints, before, equal_nan=True)
+    a, b = got[True], got[False]
+    torch.testing.assert_close(kept[True].waypoints, kept[False].waypoints, rtol=0, atol=0, equal_nan=True)
+    for name in ("waypoints", "count", "queue", "pos", "frame"):
+        torch.testing.assert_close(getattr(a, name), getattr(b, name), rtol=0, atol=0, equal_nan=True)
+    assert a.waypoints.shape[1] == max(7, state.waypoints.shape[1])
+    assert a.count.tolist()[1:5] == [1, 0, state.count[3].item(), 2]
+    assert a.queue[1] == 0 and a.queue[2] == 0 and a.queue[4] == 0 and a.queue[3] == state.queue[3]
+    assert np.array_equal(a.waypoints[4].numpy(), np.concatenate([long[:2], np.repeat(long[1:2], 5, 0)]))
+    assert torch.equal(state.waypoints[0], a.waypoints[0, : state.waypoints.shape[1]])  # the others kept
+
+
+def test_a_ring_keeps_the_same_frames_in_numpy_as_in_torch() -> None:
+    """The CPU ring (numpy arrays, numpy indexing) and the ring of other devices (torch tensors,
+    forced here on the CPU) record, restore and report queues alike, to the bit."""
+    from motion_env.models.controller_state import _RECORDED, StateRing
+
+    model = _tiny(3)
+    rng = np.random.default_rng(5)
+    rings = [StateRing(4, 16, TINY.hidden, "cpu") for _ in range(2)]
+    rings[1]._on_cpu = False  # what a GPU's ring does, on the CPU's tensors
+    rings[1]._fields = {name: getattr(rings[1], name) for name in _RECORDED}
+    with torch.no_grad():
+        state = model.init_state(
+            torch.randn(4, 16), _routes(rng, 4), generator=torch.Generator().manual_seed(6)
+        )
+        timed = np.array([[0.1, 0.1, 3], [0.2, 0.2, 6], [0.5, 0.5, 12], [1.0, 1.0, 200]], np.float32)
+        state = model.set_routes(state, [3], [timed])  # row 3's queue moves on by time
+        some = torch.tensor([1, 3])
+        for ring in rings:
+            ring.record(torch.arange(4), state)
+        for steps in (5, 20):  # 20: more frames than the ring holds
+            first = state.take(some).frame
+            sub, trace = model.run(state.take(some), steps, trace=True)
+            state = state.put(some, sub)
+            for ring in rings:
+                ring.record_trace(some, first, trace)
+                ring.set_queue(some[:1], first[:1] + 2, torch.tensor([7]))
+    frames = torch.tensor([3, 23, 0, 20])
+    a, b = (ring.restore(state, torch.tensor([3, 1]), frames[[3, 1]]) for ring in rings)
+    for name in ("pos", "theta", "vel", "hidden", "queue", "frame"):
+        assert torch.equal(getattr(a, name), getattr(b, name)), name
+    # Row 1 at frame 23 and row 3 at frame 20: frames 18 and 15 of the 20-frame run (from frame 5);
+    # row 1's queue there is the one set_queue wrote (frame 7's slot is frame 23's now).
+    assert torch.equal(a.root[[1, 3]], trace.roots[[0, 1], [17, 14]])
+    assert torch.equal(a.vel[[1, 3]], trace.vel[[0, 1], [17, 14]])
+    assert torch.equal(a.hidden[[1, 3]], trace.hidden[[0, 1], [17, 14]])
+    assert a.queue[1] == 7 and a.queue[3] == trace.queue[1, 14] == 3
+    assert np.array_equal(rings[0].roots[[1, 3], [7, 4]], trace.roots[[0, 1], [17, 14]].numpy())
+    for name in _RECORDED:
+        assert torch.equal(getattr(rings[0], name), getattr(rings[1], name)), name
+    assert np.array_equal(rings[0].roots, rings[1].roots) and rings[0].roots[1].any()
+    rows, at = np.array([1, 3]), np.array([22, 24])
+    assert rings[0].queue_at(rows, at) == rings[1].queue_at(rows, at)
+
+
 @pytest.mark.parametrize("batch", [5, 8])
 def test_the_compiled_loop_traces_the_numpy_frames(batch: int, monkeypatch: pytest.MonkeyPatch) -> None:
     """controller_jit's loop against PathController._frame on numpy: every frame's root, velocity,

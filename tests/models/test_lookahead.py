@@ -160,9 +160,15 @@ def test_stream_head_mode(gen: MotionGenerator) -> None:
 
 
 @torch.no_grad()
-def test_predict_on_numpy_agrees_with_torch(gen: MotionGenerator, monkeypatch: pytest.MonkeyPatch) -> None:
-    """A few characters without gradients predict on numpy (PathController.frame_ops): the same
-    roots as torch's operations to float32 rounding, as a tensor."""
+@pytest.mark.parametrize("compiled", [False, True])
+def test_predict_on_numpy_agrees_with_torch(
+    gen: MotionGenerator, monkeypatch: pytest.MonkeyPatch, compiled: bool
+) -> None:
+    """A few characters without gradients predict on numpy (PathController.frame_ops), the MLP on
+    numpy's operations or compiled (lookahead_jit): the same roots as torch's operations to
+    float32 rounding, as a tensor."""
+    if compiled:
+        pytest.importorskip("numba")
     ctrl = gen.pipeline.controller
     torch.manual_seed(0)
     head = _head_for(ctrl, width=32, layers=2)
@@ -179,6 +185,7 @@ def test_predict_on_numpy_agrees_with_torch(gen: MotionGenerator, monkeypatch: p
     roots["torch"] = head.predict(ctrl, state)
     monkeypatch.setattr(ctrl, "frame_backend", "auto")
     monkeypatch.setattr(head, "forward", lambda x: pytest.fail("torch's forward ran on numpy's turn"))
+    head.compiled = compiled
     roots["numpy"] = head.predict(ctrl, state)
     assert isinstance(roots["numpy"], torch.Tensor) and roots["numpy"].dtype == torch.float32
     np.testing.assert_allclose(roots["numpy"].numpy(), roots["torch"].numpy(), atol=2e-5)

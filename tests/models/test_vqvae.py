@@ -141,6 +141,59 @@ def test_decoder_stream_on_numpy_equals_torch(spread: VQVAE) -> None:
     assert want.abs().max() > 0.1  # the outputs are not all near zero
 
 
+def _compiled_run(
+    model: VQVAE, compiled: bool, codes: torch.Tensor
+) -> tuple[torch.Tensor, list[torch.Tensor]]:
+    """:func:`_stream_run` on numpy, compiled or not; also the histories it leaves."""
+    stream = model.decoder_stream(3)
+    stream.backend, stream.compiled = "numpy", compiled
+    out = []
+    with torch.no_grad():
+        for t in range(codes.shape[1]):
+            rows = [[1], [0, 2], None][t % 3]  # 1 and 2 rows: compiled products; 3 rows of 2-4 frames: BLAS's
+            out.append(stream.step(codes[rows or [0, 1, 2], t], rows=rows))
+            if t == 4:
+                stream.reset([1])
+    return torch.cat([o.reshape(-1) for o in out]), stream.state()
+
+
+def test_the_compiled_decoder_step_decodes_as_numpy_does(spread: VQVAE) -> None:
+    """The compiled taps and few-row products (vqvae_jit) against numpy's concatenations and
+    BLAS: the same frames and histories to float32 rounding."""
+    pytest.importorskip("numba")
+    codes = torch.randint(0, 32, (3, 2 * spread.decoder_context_tokens))
+    (got, got_state), (want, want_state) = (
+        _compiled_run(spread, True, codes),
+        _compiled_run(spread, False, codes),
+    )
+    torch.testing.assert_close(got, want, atol=1e-5, rtol=1e-5)
+    assert want.abs().max() > 0.1
+    for a, b in zip(got_state, want_state, strict=True):
+        torch.testing.assert_close(a, b, atol=1e-5, rtol=1e-5)
+
+
+def test_the_compiled_decoder_kernels() -> None:
+    """causal_taps gathers what the numpy concatenation gathers and moves the history on;
+    few_rows_linear multiplies as numpy does, a width not a multiple of four included."""
+    pytest.importorskip("numba")
+    from motion_env.models.vqvae_jit import causal_taps, few_rows_linear
+
+    rng = np.random.default_rng(0)
+    for dilation, t in ((1, 1), (3, 2), (9, 4)):
+        cache = rng.normal(size=(4, 2 * dilation, 5)).astype(np.float32)
+        x = rng.normal(size=(2, t, 5)).astype(np.float32)
+        index = np.array([3, 1])
+        full = np.concatenate([cache[index], x], axis=1)
+        want = np.concatenate([full[:, j * dilation : j * dilation + t] for j in range(3)], axis=-1)
+        untouched = cache[[0, 2]].copy()
+        got = causal_taps(cache, x, index, dilation, 3)
+        assert np.array_equal(got, want.reshape(2 * t, 15))
+        assert np.array_equal(cache[index], full[:, t:]) and np.array_equal(cache[[0, 2]], untouched)
+    for k in (8, 13):
+        x, w, b = (rng.normal(size=s).astype(np.float32) for s in ((3, k), (k, 6), (6,)))
+        np.testing.assert_allclose(few_rows_linear(x, w, b), x @ w + b, rtol=1e-5, atol=1e-5)
+
+
 def test_decoder_stream_backend_choice_and_errors(spread: VQVAE) -> None:
     stream = spread.decoder_stream(1)
     with torch.no_grad():

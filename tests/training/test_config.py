@@ -81,7 +81,7 @@ def test_defaults_are_the_trainers_defaults() -> None:
         "seed": 0, "device": "cpu", "resume": True, "log_every": 50, "save_every": 100, "eval_every": 0,
         "max_minutes": math.inf, "progress": True, "steps": 1500, "batch_size": 64, "lr": 3e-4,
         "text_drop": 0.1, "start_crop": 0.3, "text_noise": 0.3, "token_keep": 1.0, "token_keep_random": False,
-        "token_offsets": 1, "action_balance": 0.0,
+        "token_offsets": 1, "action_balance": 0.0, "time_stretch": 0.0,
         "encoder": "minilm+sides", "init": None,
     }  # fmt: skip
     assert ControllerTrainConfig().to_dict() == {

@@ -159,3 +159,36 @@ def test_rare_actions_are_drawn_more_often_with_action_balance(tiny_dataset: Pat
     assert balanced[:2].sum() > 2 * by_length[:2].sum()
     with pytest.raises(ValueError, match="action_balance"):
         GPTTrainConfig(action_balance=1.5)
+
+
+def test_train_clips_played_faster_and_slower_with_time_stretch(tiny_dataset: Path, vqvae: Path) -> None:
+    from motion_env.data.dataset import load_stats, read_split
+    from motion_env.models.normalizer import Normalizer
+    from motion_env.models.vqvae import VQVAE
+    from motion_env.motion.features import joints_to_features
+    from motion_env.motion.kinematics import resample
+    from motion_env.motion.skeleton import FPS, ROOT_LIN_VEL
+    from motion_env.training.gpt import _TokenSet
+
+    vq, _ = load_checkpoint(vqvae, "vqvae", VQVAEConfig, VQVAE)
+    clips, norm = read_split(tiny_dataset, "train"), Normalizer(*load_stats(tiny_dataset))
+    one, three = _TokenSet(clips, vq, norm, "cpu"), _TokenSet(clips, vq, norm, "cpu", stretch=0.25)
+    assert len(three) == 3 * len(one)
+    name = one.names[0]
+    assert three.names[:3] == [name, f"{name}~0.75", f"{name}~1.25"] and torch.equal(
+        three.codes[0], one.codes[0]
+    )
+    assert three.captions[1] == three.captions[0] and three.labels[1] == three.labels[0]
+    # Played slower, more tokens; faster, fewer: about the clip's length over its speed.
+    np.testing.assert_allclose(three.lengths[1:3] / three.lengths[0], [1 / 0.75, 1 / 1.25], rtol=0.08)
+    # The slow entry is the clip's joints resampled, its features made from them, encoded.
+    joints = np.asarray(clips[0].joints, np.float32)
+    feats = joints_to_features(resample(joints, FPS * 0.75, FPS), floor=False)
+    n = len(feats) // vq.rate
+    x = torch.from_numpy(norm.normalize(feats[: n * vq.rate].astype(np.float32)))[None]
+    assert torch.equal(three.codes[1], vq.encode(x)[0]) and three.path[1].shape[0] == n
+    # The walk goes faster and slower with it: its root's forward speed in the features.
+    speed = [np.abs(np.asarray(f)[:, ROOT_LIN_VEL]).sum(-1).mean() for f in (clips[0].features, feats)]
+    assert speed[1] / speed[0] == pytest.approx(0.75, rel=0.1)
+    with pytest.raises(ValueError, match="time_stretch"):
+        GPTTrainConfig(time_stretch=0.6)
