@@ -262,10 +262,8 @@ def train_gpt(
         model_config = config_from_dict(GPTConfig, init["config"])
     model_config = _model_config(model_config, vq, text_encoder)
     normalizer = loop.load_normalizer(data_dir)
-    train_clips = loop.load_split(data_dir, "train")
-    train = _TokenSet(
-        train_clips, vq, normalizer, device, config.token_offsets, read_index(data_dir), config.time_stretch
-    )
+    train_clips, index = loop.load_split(data_dir, "train"), read_index(data_dir)
+    train = _TokenSet(train_clips, vq, normalizer, device, config.token_offsets, index, config.time_stretch)
     draw = train.draw_weights(config.action_balance)
     val = _TokenSet(loop.load_split(data_dir, "val"), vq, normalizer, device)
     table, caption_row = _embed_captions(text_encoder, [train, val])

@@ -9,11 +9,13 @@ import numpy as np
 import pytest
 import torch
 
+from motion_env.data.dataset import load_stats, read_split
 from motion_env.models.checkpoint import load_checkpoint
 from motion_env.models.gpt import GPTConfig, TokenGPT
-from motion_env.models.vqvae import VQVAEConfig
+from motion_env.models.normalizer import Normalizer
+from motion_env.models.vqvae import VQVAE, VQVAEConfig
 from motion_env.text.encoders import TextEncoder
-from motion_env.training.gpt import GPTTrainConfig, corrupt_inputs, train_gpt
+from motion_env.training.gpt import GPTTrainConfig, _TokenSet, corrupt_inputs, train_gpt
 from motion_env.training.vqvae import VQVAETrainConfig, train_vqvae
 
 TINY_VQ = VQVAEConfig(width=16, code_dim=8, codebook_size=16, depth=1)
@@ -113,14 +115,15 @@ def test_corrupted_inputs_keep_their_share_and_the_start() -> None:
         GPTTrainConfig(token_keep=0.0)
 
 
-def test_train_clips_tokenised_at_every_phase(tiny_dataset: Path, vqvae: Path) -> None:
-    from motion_env.data.dataset import load_stats, read_split
-    from motion_env.models.normalizer import Normalizer
-    from motion_env.models.vqvae import VQVAE
-    from motion_env.training.gpt import _TokenSet
-
+def _token_set_inputs(tiny_dataset: Path, vqvae: Path) -> tuple[VQVAE, list, Normalizer]:
+    """What a _TokenSet of the tiny dataset is made from: the tiny VQ-VAE, the train clips, the
+    feature statistics."""
     vq, _ = load_checkpoint(vqvae, "vqvae", VQVAEConfig, VQVAE)
-    clips, norm = read_split(tiny_dataset, "train"), Normalizer(*load_stats(tiny_dataset))
+    return vq, read_split(tiny_dataset, "train"), Normalizer(*load_stats(tiny_dataset))
+
+
+def test_train_clips_tokenised_at_every_phase(tiny_dataset: Path, vqvae: Path) -> None:
+    vq, clips, norm = _token_set_inputs(tiny_dataset, vqvae)
     one, four = _TokenSet(clips, vq, norm, "cpu"), _TokenSet(clips, vq, norm, "cpu", offsets=4)
     assert len(four) == 4 * len(one) and four.names[:4] == [one.names[0]] + [
         f"{one.names[0]}@{o}" for o in (1, 2, 3)
@@ -135,13 +138,7 @@ def test_train_clips_tokenised_at_every_phase(tiny_dataset: Path, vqvae: Path) -
 
 
 def test_rare_actions_are_drawn_more_often_with_action_balance(tiny_dataset: Path, vqvae: Path) -> None:
-    from motion_env.data.dataset import load_stats, read_split
-    from motion_env.models.normalizer import Normalizer
-    from motion_env.models.vqvae import VQVAE
-    from motion_env.training.gpt import _TokenSet
-
-    vq, _ = load_checkpoint(vqvae, "vqvae", VQVAEConfig, VQVAE)
-    clips, norm = read_split(tiny_dataset, "train"), Normalizer(*load_stats(tiny_dataset))
+    vq, clips, norm = _token_set_inputs(tiny_dataset, vqvae)
     assert set(_TokenSet(clips, vq, norm, "cpu").labels) == {""}  # without an index: no labels
     # One clip (both its phases) is a rare action, the others a common one; the index names
     # whole clips, so the second phase reads its clip's row.
@@ -162,16 +159,11 @@ def test_rare_actions_are_drawn_more_often_with_action_balance(tiny_dataset: Pat
 
 
 def test_train_clips_played_faster_and_slower_with_time_stretch(tiny_dataset: Path, vqvae: Path) -> None:
-    from motion_env.data.dataset import load_stats, read_split
-    from motion_env.models.normalizer import Normalizer
-    from motion_env.models.vqvae import VQVAE
     from motion_env.motion.features import joints_to_features
     from motion_env.motion.kinematics import resample
     from motion_env.motion.skeleton import FPS, ROOT_LIN_VEL
-    from motion_env.training.gpt import _TokenSet
 
-    vq, _ = load_checkpoint(vqvae, "vqvae", VQVAEConfig, VQVAE)
-    clips, norm = read_split(tiny_dataset, "train"), Normalizer(*load_stats(tiny_dataset))
+    vq, clips, norm = _token_set_inputs(tiny_dataset, vqvae)
     one, three = _TokenSet(clips, vq, norm, "cpu"), _TokenSet(clips, vq, norm, "cpu", stretch=0.25)
     assert len(three) == 3 * len(one)
     name = one.names[0]
