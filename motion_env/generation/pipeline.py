@@ -69,8 +69,8 @@ from motion_env.generation.recompose import (
 from motion_env.generation.refine import RefineConfig, Refined, refine_clip
 from motion_env.generation.request import BatchRequest
 from motion_env.generation.root_bending import implied_route
-from motion_env.generation.route_planning import needs_pace, pace_route, plan_route
-from motion_env.models.caption_adapter import CaptionAdapter
+from motion_env.generation.route_planning import needs_pace, pace_route, plan_route, turn_round, walks_forward
+from motion_env.models.caption_adapter import UNLABELLED, CaptionAdapter
 from motion_env.models.controller import ControllerState, PathController
 from motion_env.models.gpt import TokenGPT
 from motion_env.models.lookahead import LookaheadHead
@@ -184,6 +184,7 @@ class Pipeline:
         # models decode, for comparisons or learners that want every frame they can get).
         self.physics = True
         self._caption_warnings: dict[str, str] = {}  # caption -> its warning ('' none), made once
+        self._walks: dict[str, bool] = {}  # caption -> whether it reads as a forward walk (turn_round)
         # Stage 2's pace regressor (models.pace): untimed routes are followed at the caption's pace
         # (generation.route_planning.pace_route); None: at the controller's own.
         self.pace: PaceRegressor | None = None
@@ -244,6 +245,7 @@ class Pipeline:
         before = self.reader_name
         self._caption_adapter = None if adapter is None else self._checked_adapter(adapter)
         self._caption_warnings.clear()  # they name what the adapter reads
+        self._walks.clear()
         if self.reader_name != before:
             self._text_encoder = None  # the other encoder loads on the next caption
 
@@ -293,6 +295,8 @@ class Pipeline:
                 self._caption_warnings[text] = message = self._check_caption(text, row.numpy())
                 if message:
                     warnings.warn(message, UserWarning, stacklevel=3)
+            if text not in self._walks:
+                self._walks[text] = self._walking(row)
         emb = emb.to(self.device)
         if self.caption_adapter is not None:
             with torch.no_grad():
@@ -308,6 +312,25 @@ class Pipeline:
         if vocab is None or str(self.text_encoder.name).split("+")[0] != vocab.encoder:
             return caption_warning(text, reading=reading)
         return caption_warning(text, embedding, vocab, reading=reading)
+
+    def _walking(self, embedding: torch.Tensor) -> bool:
+        """Whether the caption adapter reads a caption's encoder `embedding` as a forward walk
+        (:func:`~motion_env.generation.route_planning.walks_forward`); False without an adapter."""
+        adapter = self.caption_adapter
+        if adapter is None:
+            return False
+        with torch.no_grad():
+            logits, _ = adapter.labels(embedding[None].to(self.device))
+        return walks_forward(logits[0].softmax(-1).cpu().numpy(), adapter.config.action_classes, UNLABELLED)
+
+    def walks_forward(self, texts: Sequence[str]) -> np.ndarray:
+        """(N,) bool: which captions read as a forward walk, whose untimed waypoints behind are
+        turned to on an arc (:func:`~motion_env.generation.route_planning.turn_round`); a caption
+        not encoded yet is encoded first."""
+        missing = [t for t in dict.fromkeys(texts) if t not in self._walks]
+        if missing:
+            self.encode_text(missing)
+        return np.array([self._walks[t] for t in texts], bool)
 
     def _reading(self, embedding: np.ndarray) -> str:
         row = torch.from_numpy(embedding)[None].to(self.device)
@@ -371,13 +394,17 @@ class Pipeline:
     def clip_paths(self, text_emb: torch.Tensor, req: BatchRequest, snap: bool = True) -> np.ndarray:
         """Root paths (B, n_path, 3) for clips of ``req.num_frames``, bent through the routes if `snap`.
 
-        The routes are planned first (:func:`~motion_env.generation.route_planning.plan_route`). The path
+        The routes are planned first (:func:`~motion_env.generation.route_planning.plan_route`; a
+        forward walk's controller also turns round on an arc to a waypoint behind it,
+        :func:`~motion_env.generation.route_planning.turn_round`, which the bending does not see). The path
         reaches one horizon past the last token's first frame, as in streaming, so the last
         tokens' path features are never cut short.
         """
         n_path = (math.ceil(req.num_frames / self.rate) - 1) * self.rate + self.path_horizon + 1
         routes = [plan_route(r, start[:2]) for r, start in zip(req.routes, req.starts, strict=True)]
-        roots = self.rollout(text_emb, replace(req, routes=routes), n_path)
+        walking = self.walks_forward(req.texts)
+        steered = [turn_round(r, s) if w else r for r, s, w in zip(routes, req.starts, walking, strict=True)]
+        roots = self.rollout(text_emb, replace(req, routes=steered), n_path)
         if snap:
             roots = np.stack([snap_route(r, w) for r, w in zip(roots, routes, strict=True)])
         return roots

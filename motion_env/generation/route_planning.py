@@ -1,7 +1,8 @@
 """The route the path controller is given: a checked request route, planned so it can be followed.
 
 Two rules, both closed form and both leaving routes the controller was trained on unchanged
-(:func:`plan_route`), and a third that needs the caption's pace (:func:`pace_route`):
+(:func:`plan_route`), a third that needs the caption's pace (:func:`pace_route`) and a fourth that
+needs its heading and what the caption asks (:func:`turn_round`):
 
 - **Untimed waypoints before a timed one get times**, spread along the route at one pace from the
   previous timed waypoint (or the start): without them the controller walks the untimed part at
@@ -18,6 +19,17 @@ Two rules, both closed form and both leaving routes the controller was trained o
   slower than :data:`MIN_PACE` (waves, bows: not a way of travelling) leaves the route as it is.
   Only the controller sees these times: the path is snapped to the waypoints as untimed ones
   (wherever it passes them), so the timing steers and never bends the path.
+- **A walk turns round on an arc to a waypoint behind it**: the controller learned its heading
+  from real takes, whose next waypoint lies ahead of a forward walk and behind a backward one, so
+  it walked backwards to an untimed waypoint more than :data:`TURN_BEARING` round from the way it
+  was going (its heading at the start, the leg it came by after a waypoint: every moving frame,
+  ``scripts/walk_direction.py``). For a caption read as a forward walk (:func:`walks_forward`),
+  untimed waypoints on a half circle of :data:`TURN_RADIUS` towards the waypoint's side (every
+  :data:`ARC_STEP` of the turn, until the waypoint lies within 60° of the way the arc goes) are
+  put before it (:func:`turn_round`), so the controller walks a U-turn as the takes' turns go and
+  then on forwards. A waypoint nearer than :data:`TURN_MIN_DISTANCE` is stepped back to; runs
+  and jogs are left as they were (turned on such an arc, their bodies need more push from the
+  floor than it gives: the replay's root force).
 
 The waypoints a user gave stay where they are (and in :attr:`Motion.waypoints`); only the
 controller and the snapping see the planned route.
@@ -26,19 +38,28 @@ controller and the snapping see the planned route.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
 from motion_env.motion.skeleton import FPS
 
 __all__ = [
+    "ARC_STEP",
+    "BACKWARD",
     "MAX_UNTIMED_LEG",
     "MIN_PACE",
     "SPLIT_LEG",
     "START_ACCELERATION",
+    "TURN_BEARING",
+    "TURN_MIN_DISTANCE",
+    "TURN_RADIUS",
+    "WALKS",
     "needs_pace",
     "pace_route",
     "plan_route",
+    "turn_round",
+    "walks_forward",
 ]
 
 MAX_UNTIMED_LEG = 6.0  # metres: longer untimed legs are split (routes used in training: 1-4 m legs)
@@ -47,6 +68,12 @@ MIN_PACE = 0.6  # m/s: a slower caption pace leaves untimed waypoints untimed (t
 # m/s^2: a character that starts its episode on a paced route (at rest) gets the time to reach the
 # pace at this acceleration, pace / (2 a) seconds more (real runs reach 3 m/s in about a second).
 START_ACCELERATION = 3.0
+TURN_BEARING = math.radians(110.0)  # an untimed waypoint further round than this is turned to
+TURN_RADIUS = 1.5  # metres: the U-turn's (1 m was tried: 2 of 3 walks to a waypoint behind failed the replay)
+TURN_MIN_DISTANCE = 1.5  # metres: a nearer waypoint behind is stepped back to, as people do
+ARC_STEP = math.radians(60.0)  # of the U-turn between two of its waypoints
+WALKS = ("walk", "walk-turn-left", "walk-turn-right")  # the actions that turn round on an arc
+BACKWARD = ("walk-back",)  # a walk that goes where its back is: never turned round
 
 
 def plan_route(
@@ -137,3 +164,63 @@ def _planned(route: np.ndarray | None, start_xz: np.ndarray, first_frame: int) -
                 rows.append([*(points[k] + f * (points[k + 1] - points[k])), np.nan])
         rows.append([*route[k, :2], times[k]])
     return np.array(rows, np.float32)
+
+
+def walks_forward(probabilities: np.ndarray, actions: Sequence[str], unlabelled: str) -> bool:
+    """Whether a caption reads as a forward walk: the caption adapter's action `probabilities`
+    (A,) over `actions` (`unlabelled` among them: captions without a label) put over half of the
+    labelled actions' share on :data:`WALKS` beyond what they put on a backward walk."""
+    p = dict(zip(actions, np.asarray(probabilities, np.float64).tolist(), strict=True))
+    labelled = 1.0 - p.get(unlabelled, 0.0)
+    walks = sum(p.get(a, 0.0) for a in WALKS) - sum(p.get(a, 0.0) for a in BACKWARD)
+    return labelled > 0.1 and walks / labelled > 0.5
+
+
+def turn_round(route: np.ndarray | None, start: np.ndarray) -> np.ndarray | None:
+    """A planned route (:func:`plan_route`) with a U-turn's untimed waypoints before each untimed
+    waypoint that lies at least :data:`TURN_MIN_DISTANCE` from the point before it and more than
+    :data:`TURN_BEARING` round from the way the character goes there (at the start its heading,
+    after a waypoint the way the leg into it goes): module docstring. Else the route as it is.
+
+    Args:
+        route: (K, 3) planned route (NaN time = untimed), or None.
+        start: (3,) x, z and heading of the character where the route starts.
+    """
+    if route is None or not len(route):
+        return route
+    x, z, heading = (float(v) for v in start[:3])
+    rows, turned = [], False
+    for wx, wz, t in route.tolist():  # a few waypoints: plain floats cost less than arrays here
+        if math.isnan(t):
+            arc = _u_turn(x, z, heading, wx, wz)
+            turned |= bool(arc)
+            rows += arc
+            x, z = arc[-1][:2] if arc else (x, z)
+        if math.hypot(wx - x, wz - z) > 1e-6:
+            heading = math.atan2(wx - x, wz - z)  # the heading convention: 0 faces +Z
+        rows.append([wx, wz, t])
+        x, z = wx, wz
+    return np.array(rows, np.float32) if turned else route
+
+
+def _u_turn(x: float, z: float, heading: float, wx: float, wz: float) -> list[list[float]]:
+    """The U-turn's waypoints (x, z, NaN) from (x, z) going `heading` to (wx, wz): none when the
+    target is nearer than TURN_MIN_DISTANCE or within TURN_BEARING of the way ahead."""
+    sin, cos = math.sin(heading), math.cos(heading)
+    dx, dz = wx - x, wz - z
+    forward, lateral = dx * sin + dz * cos, dx * cos - dz * sin  # ahead (sin, cos), left (cos, -sin)
+    if math.hypot(forward, lateral) < TURN_MIN_DISTANCE or abs(math.atan2(lateral, forward)) <= TURN_BEARING:
+        return []
+    side = 1.0 if lateral > -0.01 else -1.0  # towards the target's side (straight behind: left)
+    arc = []
+    for k in range(1, math.ceil(math.pi / ARC_STEP) + 1):
+        turned = k * ARC_STEP
+        across, along = TURN_RADIUS * side * (1.0 - math.cos(turned)), TURN_RADIUS * math.sin(turned)
+        px, pz = x + across * cos + along * sin, z - across * sin + along * cos
+        arc.append([px, pz, math.nan])
+        going_across, going_along = side * math.sin(turned), math.cos(turned)
+        tx, tz = wx - px, wz - pz
+        forward, lateral = tx * sin + tz * cos, tx * cos - tz * sin
+        if going_along * forward + going_across * lateral > math.cos(math.radians(60.0)) * math.hypot(tx, tz):
+            break
+    return arc

@@ -17,7 +17,7 @@ import torch
 
 from motion_env.generation.pipeline import PATH_SMOOTHING
 from motion_env.generation.recompose import route_anchors, smooth_path, spread_residuals
-from motion_env.generation.route_planning import plan_route
+from motion_env.generation.route_planning import plan_route, turn_round
 
 __all__ = ["CATCH_UP_TOKENS", "StreamPaths"]
 
@@ -41,6 +41,7 @@ class StreamPaths:
     _routes: list[np.ndarray | None]
     _anchor_frames: list[np.ndarray]
     _pending: dict[int, tuple[np.ndarray | None, np.ndarray, int]]
+    _walking: np.ndarray
     _decoded: np.ndarray
     _snapped: np.ndarray
     _dirty: np.ndarray
@@ -61,7 +62,8 @@ class StreamPaths:
         if changed.any():
             moved = rows[changed]
             for i in moved:
-                self._routes[i] = plan_route(*self._pending.pop(int(i)))
+                route, where, frame = self._pending.pop(int(i))
+                self._routes[i] = self._planned(int(i), route, where, frame)
             # planned routes (plan_route: checked (K, 3) float32) need no second check
             self._front = g.controller.set_routes(
                 self._front, moved, [self._routes[i] for i in moved], checked=True
@@ -70,6 +72,15 @@ class StreamPaths:
             frames = torch.as_tensor(anchors[changed], device=g.device)
             self._states.set_queue(moved_t, frames, self._front.queue[moved_t])
         self._dirty[rows] = False
+
+    def _planned(
+        self, i: int, route: np.ndarray | None, where: np.ndarray, frame: int = 0
+    ) -> np.ndarray | None:
+        """Character i's checked `route` from `where` (x, z, heading) at `frame`, planned
+        (:func:`~motion_env.generation.route_planning.plan_route`), with a U-turn before a waypoint
+        behind a forward walk (:func:`~motion_env.generation.route_planning.turn_round`)."""
+        planned = plan_route(route, where[:2], frame)
+        return turn_round(planned, where) if self._walking[i] else planned
 
     def _advance(self, rows: np.ndarray, targets: np.ndarray) -> None:
         """Step the controller of `rows` until each reaches its target frame, recording every frame."""

@@ -62,7 +62,6 @@ from motion_env.generation.request import (
     resolve_seed,
 )
 from motion_env.generation.request_controls import check_joint_targets, check_objectives
-from motion_env.generation.route_planning import plan_route
 from motion_env.generation.stream_control import StreamControl
 from motion_env.generation.stream_paths import CATCH_UP_TOKENS, StreamPaths
 from motion_env.joint_targets import JointTargets
@@ -126,11 +125,8 @@ class MotionStream(StreamPaths):
         self._texts = list(texts)
         start_arr = check_starts(starts, b)
         self.infeasible = infeasible
-        self._routes = [  # planned routes (generation.route_planning): what the controller and snapping see
-            plan_route(
-                check_feasible(route, start_arr[i, :2], infeasible, what=f"waypoints of character {i}"),
-                start_arr[i, :2],
-            )
+        checked = [
+            check_feasible(route, start_arr[i, :2], infeasible, what=f"waypoints of character {i}")
             for i, route in enumerate(per_row_waypoints(waypoints, b))
         ]
         self.seed = resolve_seed(seed)
@@ -159,7 +155,8 @@ class MotionStream(StreamPaths):
         self._decoded = np.zeros(b, np.int64)
         # A change waits for the next token; `_predicted`: the look-ahead beyond the roll-out is the head's.
         self._dirty, self._predicted = np.zeros(b, bool), np.zeros(b, bool)
-        # Checked routes, planned when the next token needs them (the last one counts): plan_route's args.
+        # Checked routes, planned when the next token needs them (the last one counts): _planned's
+        # route, where (x, z, heading) and frame.
         self._pending: dict[int, tuple[np.ndarray | None, np.ndarray, int]] = {}
         self._decoder = g.vqvae.decoder_stream(b)
         self._prev = torch.zeros(b, dtype=torch.long)
@@ -175,6 +172,9 @@ class MotionStream(StreamPaths):
         self._early: _EarlyToken | None = None  # one character's next token, worked out ahead
 
         emb = g.encode_text(self._texts)
+        self._walking = g.walks_forward(self._texts)  # captions that turn round on an arc (turn_round)
+        # planned routes (generation.route_planning): what the controller and snapping see
+        self._routes = [self._planned(i, route, start_arr[i]) for i, route in enumerate(checked)]
         self._cache = g.gpt.new_cache(emb, g.sampling.guidance)
         self._front = g.init_controller(emb, self._routes, start_arr, self._ctrl_gens, paced=False)
         rows = torch.arange(b, device=dev)
@@ -239,6 +239,7 @@ class MotionStream(StreamPaths):
         g.gpt.set_cache_text(self._cache, emb.expand(len(rows), -1), None if index is None else int(index))
         for i in rows:
             self._texts[i] = text
+        self._walking[rows] = g.walks_forward([text])[0]
         self._dirty[rows] = True
 
     def set_waypoints(self, waypoints: np.ndarray | Sequence | None, index: int | None = None) -> None:
@@ -253,8 +254,8 @@ class MotionStream(StreamPaths):
         self._discard_early()
         for i in rows:
             # Feasible from where the character is now (times are frames of its episode).
-            where, frame = self._root[i, :2].copy(), int(self._emitted[i])
-            self._pending[int(i)] = (check_feasible(route, where, self.infeasible, frame), where, frame)
+            where, frame = self._root[i].copy(), int(self._emitted[i])
+            self._pending[int(i)] = (check_feasible(route, where[:2], self.infeasible, frame), where, frame)
             self._dirty[i] = True
 
     def set_goals(self, points: np.ndarray, rows: Sequence[int] | np.ndarray) -> None:
@@ -276,7 +277,7 @@ class MotionStream(StreamPaths):
         routes = check_route(pts)  # the points as N untimed one-point routes: checked together
         self._discard_early()
         for n, i in enumerate(rows.tolist()):
-            self._pending[i] = (routes[n : n + 1], self._root[i, :2].copy(), int(self._emitted[i]))
+            self._pending[i] = (routes[n : n + 1], self._root[i].copy(), int(self._emitted[i]))
         self._dirty[rows] = True
 
     def set_joint_targets(
@@ -351,12 +352,12 @@ class MotionStream(StreamPaths):
         (i,) = self._rows(index)
         text = check_text(text)
         start_arr = np.zeros(3, np.float32) if start is None else check_start(start)
-        route = plan_route(
-            check_feasible(check_route(waypoints), start_arr[:2], self.infeasible), start_arr[:2]
-        )
+        checked = check_feasible(check_route(waypoints), start_arr[:2], self.infeasible)
         self._discard_early()
         g = self._pipe
         emb = g.encode_text([text])
+        self._walking[i] = g.walks_forward([text])[0]
+        route = self._planned(i, checked, start_arr)
         sub = g.init_controller(emb, [route], start_arr[None], [self._ctrl_gens[i]], paced=False)
         rows = torch.tensor([i], device=g.device)
         self._front = self._front.put(rows, sub)
