@@ -1,8 +1,10 @@
 """Which way the body faces while it travels: forwards, sideways or backwards, per route shape.
 
-A waypoint behind the character is reached walking backwards (the model card's Limitations): its
-path controller learned from real takes, which rarely turn on the spot. This measures it. For each
-caption and route (a waypoint ahead, to the side, behind, and a route out and back), whole clips
+The path controller learned its heading from real takes, in which a waypoint behind is a backward
+walk's: it went backwards to a waypoint behind whatever the caption said, until walks were given a
+U-turn (``route_planning.turn_round``; runs and jogs still go backwards: the model card's
+Limitations). This measures it. For each caption and route (a waypoint ahead, to the side, behind,
+behind on the right, and a route out and back), whole clips
 (``MotionGenerator.generate``) and the stream as ``motion_env/Waypoints-v0`` emits it (absolute
 actions, one frame a step, the agent sending the route target): of the frames where the pelvis
 moves faster than ``--min-speed``, the share whose facing (hips and shoulders,
