@@ -205,10 +205,11 @@ def turn_round(route: np.ndarray | None, start: np.ndarray) -> np.ndarray | None
 
 def _u_turn(x: float, z: float, heading: float, wx: float, wz: float) -> list[list[float]]:
     """The U-turn's waypoints (x, z, NaN) from (x, z) going `heading` to (wx, wz): none when the
-    target is nearer than TURN_MIN_DISTANCE or within TURN_BEARING of the way ahead."""
+    target is nearer than TURN_MIN_DISTANCE or within TURN_BEARING of the way ahead. Worked out in
+    the heading frame (left, ahead) = ((cos, -sin), (sin, cos)), the points turned back to the world."""
     sin, cos = math.sin(heading), math.cos(heading)
     dx, dz = wx - x, wz - z
-    forward, lateral = dx * sin + dz * cos, dx * cos - dz * sin  # ahead (sin, cos), left (cos, -sin)
+    lateral, forward = dx * cos - dz * sin, dx * sin + dz * cos
     if math.hypot(forward, lateral) < TURN_MIN_DISTANCE or abs(math.atan2(lateral, forward)) <= TURN_BEARING:
         return []
     side = 1.0 if lateral > -0.01 else -1.0  # towards the target's side (straight behind: left)
@@ -216,11 +217,9 @@ def _u_turn(x: float, z: float, heading: float, wx: float, wz: float) -> list[li
     for k in range(1, math.ceil(math.pi / ARC_STEP) + 1):
         turned = k * ARC_STEP
         across, along = TURN_RADIUS * side * (1.0 - math.cos(turned)), TURN_RADIUS * math.sin(turned)
-        px, pz = x + across * cos + along * sin, z - across * sin + along * cos
-        arc.append([px, pz, math.nan])
-        going_across, going_along = side * math.sin(turned), math.cos(turned)
-        tx, tz = wx - px, wz - pz
-        forward, lateral = tx * sin + tz * cos, tx * cos - tz * sin
-        if going_along * forward + going_across * lateral > math.cos(math.radians(60.0)) * math.hypot(tx, tz):
+        arc.append([x + across * cos + along * sin, z - across * sin + along * cos, math.nan])
+        to_across, to_along = lateral - across, forward - along  # the target from the point
+        going = side * math.sin(turned) * to_across + math.cos(turned) * to_along
+        if going > math.cos(math.radians(60.0)) * math.hypot(to_across, to_along):
             break
     return arc

@@ -41,7 +41,7 @@ class StreamPaths:
     _routes: list[np.ndarray | None]
     _anchor_frames: list[np.ndarray]
     _pending: dict[int, tuple[np.ndarray | None, np.ndarray, int]]
-    _walking: np.ndarray
+    _texts: list[str]
     _decoded: np.ndarray
     _snapped: np.ndarray
     _dirty: np.ndarray
@@ -78,9 +78,10 @@ class StreamPaths:
     ) -> np.ndarray | None:
         """Character i's checked `route` from `where` (x, z, heading) at `frame`, planned
         (:func:`~motion_env.generation.route_planning.plan_route`), with a U-turn before a waypoint
-        behind a forward walk (:func:`~motion_env.generation.route_planning.turn_round`)."""
+        behind a forward walk (:func:`~motion_env.generation.route_planning.turn_round`; its
+        caption read as the pipeline caches it)."""
         planned = plan_route(route, where[:2], frame)
-        return turn_round(planned, where) if self._walking[i] else planned
+        return turn_round(planned, where) if self._pipe.walks_forward([self._texts[i]])[0] else planned
 
     def _advance(self, rows: np.ndarray, targets: np.ndarray) -> None:
         """Step the controller of `rows` until each reaches its target frame, recording every frame."""

@@ -172,7 +172,6 @@ class MotionStream(StreamPaths):
         self._early: _EarlyToken | None = None  # one character's next token, worked out ahead
 
         emb = g.encode_text(self._texts)
-        self._walking = g.walks_forward(self._texts)  # captions that turn round on an arc (turn_round)
         # planned routes (generation.route_planning): what the controller and snapping see
         self._routes = [self._planned(i, route, start_arr[i]) for i, route in enumerate(checked)]
         self._cache = g.gpt.new_cache(emb, g.sampling.guidance)
@@ -239,7 +238,6 @@ class MotionStream(StreamPaths):
         g.gpt.set_cache_text(self._cache, emb.expand(len(rows), -1), None if index is None else int(index))
         for i in rows:
             self._texts[i] = text
-        self._walking[rows] = g.walks_forward([text])[0]
         self._dirty[rows] = True
 
     def set_waypoints(self, waypoints: np.ndarray | Sequence | None, index: int | None = None) -> None:
@@ -356,14 +354,14 @@ class MotionStream(StreamPaths):
         self._discard_early()
         g = self._pipe
         emb = g.encode_text([text])
-        self._walking[i] = g.walks_forward([text])[0]
+        self._texts[i] = text  # the caption the route is planned for (_planned)
         route = self._planned(i, checked, start_arr)
         sub = g.init_controller(emb, [route], start_arr[None], [self._ctrl_gens[i]], paced=False)
         rows = torch.tensor([i], device=g.device)
         self._front = self._front.put(rows, sub)
         self._states.record(rows, sub)
         g.gpt.reset_cache_rows(self._cache, [int(i)], emb)
-        self._texts[i], self._routes[i] = text, route
+        self._routes[i] = route
         self._snapped[i, 0] = start_arr
         self._emitted[i] = self._decoded[i] = 0
         self._dirty[i] = self._predicted[i] = False

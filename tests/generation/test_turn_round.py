@@ -131,24 +131,31 @@ def test_the_pipeline_gives_the_arc_to_the_controller_only(monkeypatch: pytest.M
     assert len(seen[-1][0]) > 1 and len(routes[0]) == 1  # the path is bent through the route alone
 
 
-def test_the_stream_turns_round_from_where_a_new_route_finds_it() -> None:
+def test_the_stream_turns_round_from_where_a_new_route_finds_it(monkeypatch: pytest.MonkeyPatch) -> None:
     from motion_env.generation.generator import RANDOM_MODEL, MotionGenerator
 
     stream = MotionGenerator.from_pretrained(RANDOM_MODEL).stream(["a person walks"], waypoints=[[0.0, -4.0]])
     assert len(stream._routes[0]) == 1  # the untrained model reads no caption: no arc
-    stream._walking[0] = True
-    for _ in range(5):
-        stream.step()
-    where = stream.root_state[0].astype(np.float64)
-    behind = where[:2] - 4.0 * np.array([math.sin(where[2]), math.cos(where[2])])
-    stream.set_waypoints([behind], index=0)
-    for _ in range(4):  # the route is planned when the next token needs it, from where it was given
-        stream.step()
+    pipe = stream._pipe
+    monkeypatch.setattr(pipe, "walks_forward", lambda texts: np.array([t.endswith("walks") for t in texts]))
+
+    def route_behind() -> tuple[np.ndarray, np.ndarray]:  # a waypoint 4 m behind, planned at the next token
+        for _ in range(5):
+            stream.step()
+        where = stream.root_state[0].astype(np.float64)
+        behind = where[:2] - 4.0 * np.array([math.sin(where[2]), math.cos(where[2])])
+        stream.set_waypoints([behind], index=0)
+        for _ in range(4):  # the route is planned when the next token needs it, from where it was given
+            stream.step()
+        return where, behind
+
+    where, behind = route_behind()
     expected = turn_round(_route(tuple(behind)), where)
     assert expected is not None and len(expected) > 1
     np.testing.assert_allclose(stream._routes[0], expected, atol=1e-5)
+    stream.set_text("a person walks slowly")  # read again: the next route is a slow walk's, not turned
+    route_behind()
+    assert len(stream._routes[0]) == 1
+    monkeypatch.undo()
     stream.reset(0, "a person walks", waypoints=[[0.0, -4.0]])  # read again: no walk without an adapter
-    assert not stream._walking[0] and len(stream._routes[0]) == 1
-    stream._walking[0] = True
-    stream.set_text("a person walks slowly")
-    assert not stream._walking[0]
+    assert len(stream._routes[0]) == 1
